@@ -1,0 +1,41 @@
+"""jeanscv: how would this thing wear jeans?
+
+Coordinate convention, used everywhere in the package: x right, y down, in pixels,
+with pixel ``(col, row)`` covering the square ``[col, col+1) x [row, row+1)``, so its
+centre is at ``(col + 0.5, row + 0.5)``. The fitting canvas is 256x256 pixels;
+"normalised" coordinates are canvas pixels / 256.
+
+The public API (numpy in, numpy out) is imported lazily, so ``import jeanscv``
+stays cheap and does not load torch until a function needs it.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "load_image": "jeanscv.api",
+    "extract_silhouette": "jeanscv.api",
+    "fit": "jeanscv.api",
+    "composite": "jeanscv.api",
+    "apply_jeans": "jeanscv.api",
+    "read_svg": "jeanscv.api",
+    "Silhouette": "jeanscv.api",
+    "JeansResult": "jeanscv.api",
+    "JeansError": "jeanscv.errors",
+    "JalgorithmLoss": "jeanscv.loss",
+    "jalgorithm_terms": "jeanscv.loss",
+    "PRESETS": "jeanscv.presets",
+    "GARMENTS": "jeanscv.garments",
+}
+
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'jeanscv' has no attribute {name!r}")

@@ -1,0 +1,11 @@
+"""The one exception type that jeanscv raises for bad input."""
+
+from __future__ import annotations
+
+
+class JeansError(ValueError):
+    """A user-facing failure: bad input, an empty silhouette, a diverged fit.
+
+    The message is one line that names the reason (the CLI prefixes the file name),
+    so it can be shown as ``jeanscv: FILE: reason`` without a traceback.
+    """

@@ -1,0 +1,275 @@
+"""The fitter: Adam on normalised garment vertices, several starts in one batch."""
+
+from __future__ import annotations
+
+import math
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .errors import JeansError
+from .garments import JEANS, Garment
+from .geometry import CANVAS_SIZE
+from .loss import PAPER_WEIGHTS, TERM_NAMES, jalgorithm_terms, weighted_total
+from .presets import Preset, get_preset
+
+# (scale, rotation in degrees) of the starts after the paper's own initialisation,
+# around the waistband centre moved to the canvas centre. They cover small and large
+# objects and bodies that are upright, lying or upside down.
+_PLACEMENTS = (
+    (0.6, 0.0),
+    (0.8, 0.0),
+    (0.45, 0.0),
+    (0.6, 90.0),
+    (0.6, -90.0),
+    (0.6, 180.0),
+    (0.6, 35.0),
+    (0.6, -35.0),
+    (0.35, 0.0),
+    (0.45, 180.0),
+    (0.8, 90.0),
+    (0.8, -90.0),
+)
+
+
+def is_upside_down(vertices: np.ndarray, garment: Garment) -> bool:
+    """True when the garment hangs upwards: its body lies above its waistband."""
+    v = np.asarray(vertices, dtype=np.float64)
+    waist = v[list(garment.waist)].mean(axis=0)
+    rest = np.delete(v, list(garment.waist), axis=0).mean(axis=0)
+    down = rest - waist
+    return bool(down[1] < -0.5 * np.hypot(*down))
+
+
+@dataclass
+class FitResult:
+    """The outcome of one fit. Vertices are in canvas pixels, template order."""
+
+    vertices: np.ndarray  # (N, 2)
+    objective: float
+    terms: dict[str, float]
+    paper_terms: dict[str, float]
+    paper_total: float
+    preset: Preset
+    garment: Garment
+    iterations: int
+    seed: int
+    start_index: int
+    start_objectives: list[float]  # final objective of each start optimised to the end
+    start_ids: list[int]  # which starts those are (the others were pruned)
+    num_starts: int
+    history: np.ndarray  # (iterations, starts) objective of every start
+    trajectory: np.ndarray  # (iterations + 1, N, 2) the winning start's vertices, canvas px
+    seconds: float
+    device: str
+    extra: dict = field(default_factory=dict)
+
+
+def initial_placements(garment: Garment, starts: int, seed: int = 0) -> np.ndarray:
+    """``(starts, N, 2)`` initial vertices in canvas pixels.
+
+    Start 0 is the template itself (the paper's initialisation); the others are the
+    template scaled and rotated about its waistband centre, which is moved to the
+    canvas centre, with a small seeded jitter.
+    """
+    template = np.asarray(garment.template, dtype=np.float64)
+    waist = template[list(garment.waist)].mean(axis=0)
+    rng = np.random.default_rng(seed)
+    centre = np.array([CANVAS_SIZE / 2, CANVAS_SIZE / 2])
+    out = [template]
+    for k in range(1, starts):
+        scale, degrees = _PLACEMENTS[(k - 1) % len(_PLACEMENTS)]
+        angle = math.radians(degrees + rng.normal(0.0, 3.0))
+        scale *= math.exp(rng.normal(0.0, 0.05))
+        rot = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+        out.append((template - waist) @ rot.T * scale + centre + rng.normal(0.0, 2.0, size=2))
+    return np.stack(out)
+
+
+def blur_schedule(sigmas: tuple[float, ...], iterations: int) -> list[float]:
+    """Sigma per iteration: equal slices for each sigma, then a final unblurred slice."""
+    stages = list(sigmas) + [0.0]
+    return [stages[min(i * len(stages) // max(iterations, 1), len(stages) - 1)] for i in range(iterations)]
+
+
+def _blurred(silhouette: Tensor, sigma: float) -> Tensor:
+    if sigma <= 0:
+        return silhouette
+    import kornia
+
+    radius = int(math.ceil(3 * sigma))
+    return kornia.filters.gaussian_blur2d(
+        silhouette[None, None], (2 * radius + 1, 2 * radius + 1), (sigma, sigma), border_type="constant"
+    )[0, 0]
+
+
+def as_silhouette_tensor(silhouette: np.ndarray | Tensor, device: str = "cpu") -> Tensor:
+    """Validate ``S`` and return it as a float32 ``(256, 256)`` tensor."""
+    s = torch.as_tensor(np.asarray(silhouette) if not isinstance(silhouette, Tensor) else silhouette)
+    if s.shape != (CANVAS_SIZE, CANVAS_SIZE):
+        raise JeansError(f"silhouette must be {CANVAS_SIZE}x{CANVAS_SIZE}, got {tuple(s.shape)}")
+    s = s.to(device=device, dtype=torch.float32)
+    if not torch.isfinite(s).all():
+        raise JeansError("silhouette has non-finite values")
+    s = s.clamp(0.0, 1.0)
+    if s.sum() < 1.0:
+        raise JeansError("silhouette is empty")
+    return s
+
+
+def _keep_starts(
+    params: Tensor, optimizer: torch.optim.Adam, keep: Tensor
+) -> tuple[Tensor, torch.optim.Adam]:
+    """Shrink the batch to the starts in ``keep``, carrying Adam's moments along."""
+    kept = params.detach().index_select(0, keep).clone().requires_grad_(True)
+    new_optimizer = torch.optim.Adam([kept], **{k: v for k, v in optimizer.defaults.items() if k != "params"})
+    old_state = optimizer.state[params]
+    new_optimizer.state[kept] = {
+        name: value.index_select(0, keep).clone() if value.dim() and value.shape[0] == params.shape[0] else value.clone()
+        for name, value in old_state.items()
+    }
+    return kept, new_optimizer
+
+
+def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, garment: Garment, preset: Preset) -> int:
+    """Index of the winning start.
+
+    ``objective``: the lowest objective. ``rules``: fewest failed rule checks first,
+    then upright before upside-down, then the lowest objective.
+    """
+    if preset.select == "objective":
+        return int(np.argmin(totals))
+    from .checks import rule_report
+
+    def key(i: int) -> tuple:
+        if not np.isfinite(totals[i]):
+            return (math.inf, True, math.inf)
+        failed = sum(not ok for ok in rule_report(candidates[i], silhouette, garment).checks.values())
+        return (failed, is_upside_down(candidates[i], garment), float(totals[i]))
+
+    return min(range(len(totals)), key=key)
+
+
+@contextmanager
+def _torch_threads(count: int | None):
+    """Run with ``count`` torch threads: the fit's tensors are small, and on a few cores
+    thread hand-offs (in index_add above all) cost more than they save."""
+    if not count:
+        yield
+        return
+    previous = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def fit(
+    silhouette: np.ndarray | Tensor,
+    preset: str | Preset = "default",
+    garment: Garment = JEANS,
+    iterations: int = 100,
+    seed: int = 0,
+    starts: int | None = None,
+    device: str = "cpu",
+    threads: int | None = 1,
+) -> FitResult:
+    """Fit the garment to a 256x256 silhouette ``S`` by gradient descent.
+
+    All starts are optimised together as one batch with Adam on normalised
+    coordinates; after ``preset.prune_fraction`` of the iterations only the
+    ``preset.keep`` best go on, and the winner is chosen by ``preset.select``.
+    ``threads``: torch threads during the fit (None leaves torch's setting).
+    """
+    with _torch_threads(threads):
+        return _fit(silhouette, preset, garment, iterations, seed, starts, device)
+
+
+def _fit(
+    silhouette: np.ndarray | Tensor,
+    preset: str | Preset,
+    garment: Garment,
+    iterations: int,
+    seed: int,
+    starts: int | None,
+    device: str,
+) -> FitResult:
+    began = time.perf_counter()
+    preset = get_preset(preset) if isinstance(preset, str) else preset
+    if iterations < 0:
+        raise JeansError("iterations must be >= 0")
+    num_starts = max(1, preset.starts if starts is None else starts)
+    torch.manual_seed(seed)
+    s = as_silhouette_tensor(silhouette, device)
+
+    init = torch.as_tensor(initial_placements(garment, num_starts, seed), dtype=torch.float32, device=device)
+    params = (init / CANVAS_SIZE).clone().requires_grad_(True)
+    optimizer = torch.optim.Adam([params], lr=preset.learning_rate)
+    history = np.full((iterations, num_starts), np.nan)
+    path = np.full((iterations + 1, num_starts, garment.num_vertices, 2), np.nan)
+    path[0] = init.cpu().numpy()
+    active = np.arange(num_starts)  # which starts are still optimised
+    prune_step = int(iterations * preset.prune_fraction) if preset.keep and preset.keep < num_starts else -1
+
+    def objective(pixels: Tensor, target: Tensor) -> tuple[Tensor, dict[str, Tensor]]:
+        terms = jalgorithm_terms(pixels, target, garment, preset.inter_pairs)
+        return weighted_total(terms, preset.weights), terms
+
+    sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
+    blurred_cache: dict[float, Tensor] = {}
+    for step, sigma in enumerate(sigma_per_iteration):
+        if sigma not in blurred_cache:
+            blurred_cache[sigma] = _blurred(s, sigma)
+        optimizer.zero_grad(set_to_none=True)
+        total, _ = objective(params * CANVAS_SIZE, blurred_cache[sigma])
+        if not torch.isfinite(total).any():
+            raise JeansError("the fit diverged (non-finite loss)")
+        # Diverged starts must not poison the others: drop their gradient.
+        total = torch.where(torch.isfinite(total), total, torch.zeros_like(total))
+        total.sum().backward()
+        params.grad = torch.nan_to_num(params.grad, nan=0.0, posinf=0.0, neginf=0.0)
+        optimizer.step()
+        history[step, active] = total.detach().cpu().numpy()
+        path[step + 1, active] = (params.detach() * CANVAS_SIZE).cpu().numpy()
+        if step == prune_step:
+            # Successive halving: keep optimising only the most promising starts.
+            order = np.argsort(history[step, active], kind="stable")[: preset.keep]
+            keep_index = torch.as_tensor(np.sort(order), device=device)
+            params, optimizer = _keep_starts(params, optimizer, keep_index)
+            active = active[np.sort(order)]
+
+    with torch.no_grad():
+        final = params * CANVAS_SIZE
+        totals, terms = objective(final, s)
+        totals = torch.where(torch.isfinite(totals), totals, torch.full_like(totals, math.inf))
+        best = _select(final.double().cpu().numpy(), totals.cpu().numpy(), s.cpu().numpy(), garment, preset)
+        vertices = final[best].double()
+        if not torch.isfinite(vertices).all() or not math.isfinite(float(totals[best])):
+            raise JeansError("the fit diverged (non-finite vertices)")
+        paper = jalgorithm_terms(vertices[None], s.double(), garment, "all")
+        paper_total = float(weighted_total(paper, PAPER_WEIGHTS)[0])
+
+    return FitResult(
+        vertices=vertices.cpu().numpy(),
+        objective=float(totals[best]),
+        terms={k: float(terms[k][best]) for k in TERM_NAMES},
+        paper_terms={k: float(paper[k][0]) for k in TERM_NAMES},
+        paper_total=paper_total,
+        preset=preset,
+        garment=garment,
+        iterations=iterations,
+        seed=seed,
+        start_index=int(active[best]),
+        start_objectives=[float(v) for v in totals.cpu()],
+        start_ids=[int(i) for i in active],
+        num_starts=num_starts,
+        history=history,
+        trajectory=path[:, active[best]],
+        seconds=time.perf_counter() - began,
+        device=str(device),
+    )
