@@ -1,0 +1,751 @@
+"""Paint the fitted jeans onto the original photo, and draw the paper's figures.
+
+Everything is computed only inside the jeans polygon's bounding box (plus a small
+margin), at the photo's full resolution, so a 24-MP photo costs about as much as the
+jeans it wears. Pixels outside that box are returned byte-identical.
+
+Coordinates follow the package convention (x right, y down, pixel ``(c, r)`` covers
+``[c, c+1) x [r, r+1)``). Images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA
+``uint8``; coverage, masks and shading fields are ``(h, w) float32`` in [0, 1]
+(shading may exceed 1).
+
+The ``"denim"`` style is procedural: an indigo 2/1 twill whose weave, seams, stitching
+and hardware are all sized in units of the garment's own size (:func:`_garment_unit`),
+so the jeans read the same on a thumbnail and on a 24-MP photo, shaded by the photo's
+own blurred luminance so the object's folds and shadows show through.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import torch
+
+from .errors import JeansError
+from .garments import JEANS, Garment
+from .render import polygon_coverage
+
+#: The paper's jeans colour (RGB), used by ``style="flat"`` and the figures.
+FLAT_BLUE = (0, 0, 255)
+STYLES = ("denim", "flat")
+
+# Vertices farther out than this (pixels) cannot come from a sane fit, and would
+# overflow OpenCV's fixed-point drawing coordinates.
+_MAX_COORD = float(2**22)
+# OpenCV sub-pixel drawing: coordinates carry this many fractional bits.
+_SHIFT = 4
+# Rows x columns rasterized per coverage strip, to bound memory on huge photos.
+_STRIP_PIXELS = 1 << 21
+
+# Denim palette (RGB, 0..255): deep and worn indigo, the white weft that shows in
+# the twill, golden thread, brass hardware.
+_INDIGO_DEEP = np.array([16, 30, 68], np.float32)
+_INDIGO_WORN = np.array([92, 124, 172], np.float32)
+_WEFT = np.array([178, 188, 206], np.float32)
+_THREAD = np.array([222, 150, 52], np.float32)
+_BRASS = np.array([196, 162, 98], np.float32)
+_COPPER = np.array([178, 104, 58], np.float32)
+
+
+def _signed_area(vertices: np.ndarray) -> float:
+    """Shoelace area of ``(n, 2)`` vertices; positive when the interior is left of each edge
+    in (x, y) axes as given (so clockwise on a y-down screen)."""
+    x, y = vertices[:, 0], vertices[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _garment_unit(vertices: np.ndarray, garment: Garment) -> float:
+    """Garment size in image pixels: the waistband length of a similar-shaped garment of
+    the same area. Area-based, so a fit that squeezes the waist does not shrink details."""
+    template_area = abs(_signed_area(garment.template))
+    a, b = garment.waist
+    template_waist = float(np.linalg.norm(garment.template[b] - garment.template[a]))
+    return template_waist * np.sqrt(abs(_signed_area(vertices)) / template_area)
+
+
+def _check_vertices(vertices: np.ndarray, garment: Garment) -> np.ndarray:
+    try:
+        vertices = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise JeansError("jeans vertices are not numbers") from None
+    if vertices.shape != (garment.num_vertices, 2):
+        raise JeansError(
+            f"jeans vertices must have shape ({garment.num_vertices}, 2), got {vertices.shape}"
+        )
+    if not np.all(np.isfinite(vertices)):
+        raise JeansError("jeans vertices are not finite")
+    if np.abs(vertices).max() > _MAX_COORD:
+        raise JeansError("jeans vertices lie too far outside the image")
+    return vertices
+
+
+def _patch_box(vertices: np.ndarray, height: int, width: int, margin: int = 2) -> tuple[int, int, int, int] | None:
+    """``(x0, y0, x1, y1)`` of the polygon's pixels plus ``margin``, clipped to the image;
+    None when the polygon misses the image."""
+    x0 = max(int(np.floor(vertices[:, 0].min())) - margin, 0)
+    y0 = max(int(np.floor(vertices[:, 1].min())) - margin, 0)
+    x1 = min(int(np.ceil(vertices[:, 0].max())) + margin, width)
+    y1 = min(int(np.ceil(vertices[:, 1].max())) + margin, height)
+    return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
+
+
+def polygon_coverage_patch(vertices: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Exact anti-aliased coverage of a polygon on an ``height x width`` pixel grid.
+
+    Args:
+        vertices: ``(n, 2)`` polygon in the grid's pixels (non-zero fill rule).
+
+    Returns:
+        ``(height, width) float32`` pixel area covered, in [0, 1]: the exact box-filtered
+        area (the fitter's own rasterizer), computed in row strips so memory stays small.
+    """
+    out = np.empty((height, width), np.float32)
+    rows = max(1, _STRIP_PIXELS // max(width, 1))
+    for top in range(0, height, rows):
+        strip = min(rows, height - top)
+        local = torch.from_numpy(vertices - np.array([0.0, top]))
+        out[top : top + strip] = polygon_coverage(local, strip, width).numpy()
+    return out
+
+
+# --------------------------------------------------------------------------- drawing
+
+
+def _cv_points(points: np.ndarray) -> np.ndarray:
+    """Fixed-point OpenCV coordinates of package-convention points (pixel centres at +0.5)."""
+    return np.round((np.asarray(points) - 0.5) * (1 << _SHIFT)).astype(np.int32)
+
+
+class _Layer:
+    """An 8-bit ink layer drawn with OpenCV (anti-aliased, sub-pixel), read back as float.
+
+    Each stroke or polygon carries its own ink ``value`` in [0, 1]; where they overlap
+    the later one wins, which is how stacked cloth looks anyway.
+    """
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        self.ink = np.zeros(shape, np.uint8)
+
+    def lines(self, polylines: list[np.ndarray], width: float, value: float = 1.0) -> None:
+        """Stroke open polylines ``(k, 2)`` ``width`` px wide.
+
+        OpenCV only draws whole-pixel widths, so a thinner stroke is drawn 1 px wide and
+        faded by its width, which keeps its ink (area x alpha) right.
+        """
+        if polylines:
+            cv2.polylines(
+                self.ink, [_cv_points(p) for p in polylines], False,
+                round(255 * value * min(width, 1.0)), max(1, round(width)), cv2.LINE_AA, _SHIFT,
+            )
+
+    def polygons(self, polygons: list[np.ndarray], value: float = 1.0) -> None:
+        """Fill polygons ``(k, 2)`` (drawing quality; exact area is for the jeans outline)."""
+        if polygons:
+            cv2.fillPoly(self.ink, [_cv_points(p) for p in polygons], round(255 * value), cv2.LINE_AA, _SHIFT)
+
+    def alpha(self, sigma: float = 0.0) -> np.ndarray:
+        """The ink as ``(h, w) float32`` in [0, 1], Gaussian-blurred by ``sigma`` px only
+        around where there is ink."""
+        out = np.zeros(self.ink.shape, np.float32)
+        x, y, w, h = cv2.boundingRect(self.ink)
+        if w == 0:
+            return out
+        pad = int(np.ceil(3 * sigma)) + 1
+        rows = slice(max(y - pad, 0), y + h + pad)
+        cols = slice(max(x - pad, 0), x + w + pad)
+        out[rows, cols] = _blur(self.ink[rows, cols].astype(np.float32) * np.float32(1 / 255), sigma)
+        return out
+
+
+def _blur(field: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian blur of a ``(h, w) float32`` field (may reuse its memory).
+
+    Wide blurs run on a copy shrunk so sigma is about 2 px there and are scaled back
+    up: the result is smooth anyway, and it keeps a 24-MP photo's blurs cheap.
+    """
+    if sigma < 0.1:
+        return field
+    h, w = field.shape
+    factor = int(sigma // 2)
+    if factor < 2 or min(h, w) < 4 * factor:
+        return cv2.GaussianBlur(field, (0, 0), sigma, dst=field, borderType=cv2.BORDER_REPLICATE)
+    small = cv2.resize(field, (-(-w // factor), -(-h // factor)), interpolation=cv2.INTER_AREA)
+    small = cv2.GaussianBlur(small, (0, 0), sigma / factor, borderType=cv2.BORDER_REPLICATE)
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _dashes(polyline: np.ndarray, dash: float, gap: float, box: tuple[int, int]) -> list[np.ndarray]:
+    """Dash segments ``(2, 2)`` along a polyline ``(k, 2)``, dropping those off the patch
+    ``box = (h, w)`` so a huge polygon does not make OpenCV draw millions of dashes."""
+    steps = np.linalg.norm(np.diff(polyline, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(steps)])
+    if arc[-1] < dash:
+        return []
+    starts = np.arange(0.5 * gap, arc[-1] - dash, dash + gap)
+    ends = starts + dash
+    seg = np.stack(
+        [
+            np.stack([np.interp(starts, arc, polyline[:, 0]), np.interp(starts, arc, polyline[:, 1])], -1),
+            np.stack([np.interp(ends, arc, polyline[:, 0]), np.interp(ends, arc, polyline[:, 1])], -1),
+        ],
+        axis=1,
+    )
+    h, w = box
+    keep = (
+        (seg[:, :, 0].max(1) > -dash) & (seg[:, :, 0].min(1) < w + dash)
+        & (seg[:, :, 1].max(1) > -dash) & (seg[:, :, 1].min(1) < h + dash)
+    )
+    return list(seg[keep])
+
+
+def _offset(polyline: np.ndarray, distance: float) -> np.ndarray:
+    """Polyline ``(k, 2)`` moved ``distance`` px to its left (``(-dy, dx)`` side), mitred."""
+    tangent = np.diff(polyline, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    at_vertex = np.concatenate([normal[:1], normal[:-1] + normal[1:], normal[-1:]])
+    at_vertex /= np.maximum(np.linalg.norm(at_vertex, axis=1, keepdims=True), 1e-9)
+    # A mitre is 1/cos(half the turn) long; cap it so a hairpin stays near its vertex.
+    cos_half = np.concatenate([[1.0], np.sum(at_vertex[1:-1] * normal[1:], axis=1), [1.0]])
+    return polyline + at_vertex * (distance / np.maximum(cos_half, 0.35))[:, None]
+
+
+def _bezier(p0: np.ndarray, control: np.ndarray, p1: np.ndarray, samples: int = 24) -> np.ndarray:
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    return (1 - t) ** 2 * p0 + 2 * (1 - t) * t * control + t**2 * p1
+
+
+def _closed_chains(garment: Garment) -> list[list[int]]:
+    """Vertex index runs along maximal sequences of consecutive closed edges."""
+    n = garment.num_vertices
+    closed = set(garment.closed_edges)
+    if len(closed) == n:
+        return [list(range(n)) + [0]]
+    chains = []
+    for edge in sorted(closed):
+        if (edge - 1) % n in closed:
+            continue  # not the first edge of its run
+        run = [edge]
+        while (run[-1] + 1) % n in closed:
+            run.append((run[-1] + 1) % n)
+        chains.append(run + [(run[-1] + 1) % n])
+    return chains
+
+
+# --------------------------------------------------------------------------- denim
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """The garment in patch pixels, with the frame and sizes the denim is drawn in."""
+
+    vertices: np.ndarray  # (n, 2) patch pixels
+    unit: float  # garment size in px (see _garment_unit)
+    across: np.ndarray  # (2,) unit vector along the waist, from waist[0] to waist[1]
+    down: np.ndarray  # (2,) unit vector from the waist into the garment
+    inward_sign: float  # +1 if the interior lies left ((-dy, dx)) of each edge
+
+    def inward(self, polyline: np.ndarray, distance: float) -> np.ndarray:
+        """A polyline that runs along the garment's outline, moved ``distance`` px inside."""
+        return _offset(polyline, self.inward_sign * distance)
+
+
+def _layout(vertices: np.ndarray, garment: Garment) -> _Layout:
+    a, b = garment.waist
+    across = vertices[b] - vertices[a]
+    length = float(np.linalg.norm(across))
+    # A fit that collapsed its waist still gets a frame (upright) to weave in.
+    across = across / length if length > 1e-6 else np.array([1.0, 0.0])
+    down = np.array([-across[1], across[0]])
+    centroid = vertices.mean(axis=0)
+    if np.dot(centroid - 0.5 * (vertices[a] + vertices[b]), down) < 0:
+        down = -down
+    sign = 1.0 if _signed_area(vertices) > 0 else -1.0
+    # A self-crossing fit can have zero net area yet cover pixels: keep sizes finite.
+    unit = max(_garment_unit(vertices, garment), 4.0)
+    return _Layout(vertices, unit, across, down, sign)
+
+
+class _FrameNoise:
+    """Smooth noise (about unit std) with feature sizes ``step_across`` by ``step_down``
+    px along the garment's own axes, sampled on any rows of the patch.
+
+    White noise on a coarse grid in garment coordinates, warped onto the patch with
+    bicubic interpolation: cheap at any resolution, and streaks follow the garment.
+    """
+
+    def __init__(
+        self, rng: np.random.Generator, layout: _Layout, shape: tuple[int, int],
+        step_across: float, step_down: float,
+    ) -> None:
+        h, w = shape
+        corners = np.array([[0, 0], [w, 0], [0, h], [w, h]], np.float64)
+        u = corners @ layout.across / step_across
+        v = corners @ layout.down / step_down
+        cols, rows = int(np.ceil(u.max() - u.min())) + 4, int(np.ceil(v.max() - v.min())) + 4
+        self.grid = rng.standard_normal((rows, cols)).astype(np.float32)
+        # Patch pixel (c, r), centred at (c + .5, r + .5), lands on grid index
+        # (u - u_min + 1.5, v - v_min + 1.5), one cell clear of the border.
+        self.to_grid = np.array(
+            [
+                [*(layout.across / step_across), 0.5 * layout.across.sum() / step_across - u.min() + 1.5],
+                [*(layout.down / step_down), 0.5 * layout.down.sum() / step_down - v.min() + 1.5],
+            ]
+        )
+        self.width = w
+
+    def rows(self, top: int, bottom: int) -> np.ndarray:
+        """``(bottom - top, w) float32`` noise for patch rows ``top:bottom``."""
+        matrix = self.to_grid.copy()
+        matrix[:, 2] += matrix[:, 1] * top
+        noise = cv2.warpAffine(
+            self.grid, matrix, (self.width, bottom - top), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP
+        )
+        return noise * np.float32(1.0 / 0.8)  # bicubic smoothing leaves about 0.8 std
+
+
+def _ray_hit(layout: _Layout, origin: np.ndarray, direction: np.ndarray) -> float:
+    """Distance from ``origin`` along ``direction`` to the first polygon edge (inf if none)."""
+    start = layout.vertices
+    edge = np.roll(start, -1, axis=0) - start
+    # Solve origin + t * direction = start + s * edge for every edge at once (Cramer).
+    det = edge[:, 0] * direction[1] - edge[:, 1] * direction[0]
+    rel = start - origin
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0]) / det
+        s = (direction[0] * rel[:, 1] - direction[1] * rel[:, 0]) / det
+    hit = (np.abs(det) > 1e-12) & (s >= 0) & (s <= 1) & (t > 1e-6)
+    return float(t[hit].min()) if hit.any() else np.inf
+
+
+def _towards(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Unit vector from ``p`` to ``q``."""
+    return (q - p) / max(float(np.linalg.norm(q - p)), 1e-9)
+
+
+@dataclass
+class _Details:
+    """What the garment construction adds to the plain cloth, as ``(h, w) float32`` fields."""
+
+    wear: np.ndarray  # added lightness (0 deep indigo .. 1 worn)
+    dark: np.ndarray  # multiplicative darkening (seams, shadows), 1 = none
+    thread: np.ndarray  # alpha of golden stitching
+    flip: np.ndarray  # 1 where the weave runs the other way (waistband, belt loops)
+    metal: list  # (centre (2,), radius px, rgb (3,)) of button and rivets
+
+
+def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rng: np.random.Generator) -> _Details:
+    """Seams, stitching, waistband, belt loops, pockets, fly, whiskers and hems.
+
+    Sizes are fractions of the garment unit, with pixel floors so a thumbnail still
+    shows a stitch.
+    """
+    v, unit, n = layout.vertices, layout.unit, garment.num_vertices
+    seam_w = max(1.2, 0.016 * unit)
+    thread_w = max(0.9, 0.0055 * unit)
+    stitch = max(2.2, 0.014 * unit)
+    gap = 0.45 * stitch
+    grooves, wear, thread, flip = (_Layer(shape) for _ in range(4))
+
+    def stitches(polyline: np.ndarray, offsets: tuple[float, ...], inward: bool = True) -> None:
+        for d in offsets:
+            line = layout.inward(polyline, d) if inward else _offset(polyline, d)
+            thread.lines(_dashes(line, stitch, gap, shape), thread_w)
+
+    # Closed edges: dark seam groove with double (flat-felled) topstitching beside it,
+    # and the felled allowance a slightly raised, lighter ridge between the stitches.
+    chains = [v[c] for c in _closed_chains(garment)]
+    grooves.lines(chains, 2 * seam_w, 0.55)
+    for chain in chains:
+        stitches(chain, (1.3 * seam_w, 2.5 * seam_w))
+    wear.lines([layout.inward(c, 1.9 * seam_w) for c in chains], 1.1 * seam_w, 0.18)
+
+    # Waistband: a darker band with cross-grain weave, stitched along both edges.
+    a, b = garment.waist
+    side_a = v[(a - 1) % n] if (a - 1) % n != b else v[(a + 1) % n]
+    side_b = v[(b + 1) % n] if (b + 1) % n != a else v[(b - 1) % n]
+    band = 0.11 * unit
+    a_low = v[a] + _towards(v[a], side_a) * band
+    b_low = v[b] + _towards(v[b], side_b) * band
+    top, bottom = np.array([v[a], v[b]]), np.array([a_low, b_low])
+    flip.polygons([np.array([v[a], v[b], b_low, a_low])])
+    grooves.lines([bottom], seam_w, 0.5)
+    # _offset moves left of the line; pick the sign that moves down into the band.
+    down_is_left = np.sign(layout.down @ (_offset(top, 1.0)[0] - top[0])) or 1.0
+    stitches(top, (down_is_left * 0.25 * band,), inward=False)
+    stitches(bottom, (-down_is_left * 0.25 * band,), inward=False)
+    centre_low = 0.5 * (a_low + b_low)
+    # The button sits mid-band at the centre front.
+    metal = [(0.25 * (v[a] + v[b]) + 0.5 * centre_low, 0.026 * unit, _BRASS)]
+
+    # Hems on the open leg edges: folded band, worn light edge, one stitch row.
+    hem = 0.05 * unit
+    for edge in garment.open_edges:
+        p, q = v[edge], v[(edge + 1) % n]
+        if {edge, (edge + 1) % n} == {a, b}:
+            continue
+        extend = _towards(p, q) * 0.1 * unit
+        line = np.array([p - extend, q + extend])
+        fold = layout.inward(line, hem)
+        grooves.polygons([np.vstack([line, fold[::-1]])], 0.15)
+        grooves.lines([fold], seam_w, 0.5)
+        wear.lines([line], 1.5 * seam_w, 0.6)
+        stitches(line, (0.6 * hem,))
+
+    # Front pockets: scooped openings from the waistband to the side seams, stitched on
+    # the front-panel side, a rivet at the outer end of each.
+    for corner, low, other, side in ((v[a], a_low, b_low, side_a), (v[b], b_low, a_low, side_b)):
+        start = low + (other - low) * 0.2
+        end = corner + _towards(corner, side) * 0.27 * unit
+        control = corner + 0.95 * (start - corner) + 0.9 * (end - corner)
+        curve = _bezier(start, control, end)
+        grooves.lines([curve], 0.8 * seam_w, 0.6)
+        mid = len(curve) // 2
+        towards_corner = np.dot(_offset(curve, 1.0)[mid] - curve[mid], corner - curve[mid]) > 0
+        away = -1.0 if towards_corner else 1.0
+        stitches(curve, (away * 1.2 * seam_w, away * 2.3 * seam_w), inward=False)
+        metal.append((end + (start - end) * 0.04, 0.011 * unit, _COPPER))
+
+    # Fly: centre seam down to the crotch and the J-shaped double stitch beside it, then
+    # whiskers, pale creases fanning out from the crotch across the thighs.
+    to_crotch = _ray_hit(layout, centre_low, layout.down)
+    if np.isfinite(to_crotch) and to_crotch > 0.05 * unit:
+        crotch = centre_low + layout.down * to_crotch
+        grooves.lines([np.array([centre_low, crotch])], 0.7 * seam_w, 0.55)
+        length = min(0.85 * to_crotch, 0.45 * unit)
+        tip = centre_low + layout.down * (length + 0.02 * unit)
+        for width in (0.075 * unit, 0.075 * unit - 1.1 * seam_w):
+            side = centre_low + layout.across * width
+            curve = _bezier(side + layout.down * 0.7 * length, side + layout.down * length, tip)
+            thread.lines(_dashes(np.vstack([side, curve]), stitch, gap, shape), thread_w)
+        whiskers = []
+        t = np.linspace(0, 1, 16)[:, None]
+        for sign in (-1.0, 1.0):
+            for k in range(6):
+                start = crotch + unit * (
+                    layout.across * sign * (0.09 + 0.015 * k) + layout.down * (0.035 * k - 0.07)
+                )
+                angle = np.deg2rad(rng.uniform(8, 22) + 4 * k)
+                direction = layout.across * sign * np.cos(angle) - layout.down * np.sin(angle)
+                spine = start + direction * rng.uniform(0.17, 0.27) * unit * t
+                normal = np.array([-direction[1], direction[0]])
+                half = (0.004 + 0.006 * rng.random()) * unit * np.sin(np.pi * t) ** 0.7
+                whiskers.append(np.concatenate([spine + normal * half, (spine - normal * half)[::-1]]))
+        wear.polygons(whiskers, 0.4)
+
+    # Belt loops: raised strips over the waistband with a bar tack at each end, a
+    # drop shadow on the side away from the light (down-right) and a sharp outline.
+    loop_w, loop_over = 0.04 * unit, 0.03 * unit
+    loops = []
+    for f in (0.1, 0.3, 0.7, 0.9):
+        top_pt = v[a] + (v[b] - v[a]) * f
+        low_pt = a_low + (b_low - a_low) * f + layout.down * loop_over
+        half = layout.across * 0.5 * loop_w
+        loops.append(np.array([top_pt - half, top_pt + half, low_pt + half, low_pt - half]))
+        tacks = [top_pt + layout.down * 0.014 * unit, low_pt - layout.down * 0.014 * unit]
+        thread.lines([np.array([p - half * 0.7, p + half * 0.7]) for p in tacks], 2.2 * thread_w)
+    grooves.polygons([q + (layout.across + layout.down) * 0.5 * seam_w for q in loops], 0.6)
+    raised, outline = _Layer(shape), _Layer(shape)
+    raised.polygons(loops)
+    outline.lines([np.vstack([q, q[:1]]) for q in loops], 0.6 * seam_w, 0.45)
+    flip.polygons(loops)
+    wear.polygons(loops, 0.2)
+
+    dark = 1.0 - grooves.alpha(0.5 * seam_w)
+    band_alpha = flip.alpha()
+    dark *= 1.0 - 0.2 * band_alpha
+    loop_alpha = raised.alpha()
+    dark += loop_alpha * (1.0 - dark)  # the loop stands out of the shadow under it
+    dark *= 1.0 - outline.alpha(0.25 * seam_w)
+    return _Details(
+        wear=wear.alpha(0.4 * seam_w), dark=dark, thread=thread.alpha(), flip=band_alpha, metal=metal
+    )
+
+
+def _photo_shading(image: np.ndarray, box: tuple[int, int, int, int], weight: np.ndarray, unit: float) -> np.ndarray:
+    """Multiplicative shading ``(h, w) float32`` from the photo under the jeans.
+
+    The photo's luminance, blurred so fur or print detail does not imprint on the
+    cloth, over its weighted mean under the jeans: 1 on average, below 1 in the
+    object's shadows and folds, clipped so a black patch does not blacken the denim.
+    """
+    x0, y0, x1, y1 = box
+    sigma = max(1.0, 0.02 * unit)
+    pad = int(np.ceil(3 * sigma))
+    h_img, w_img = image.shape[:2]
+    px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
+    px1, py1 = min(x1 + pad, w_img), min(y1 + pad, h_img)
+    luma = cv2.cvtColor(np.ascontiguousarray(image[py0:py1, px0:px1, :3]), cv2.COLOR_RGB2GRAY)
+    luma = _blur(luma.astype(np.float32), sigma)[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
+    total = float(weight.sum(dtype=np.float64))
+    mean = float((luma * weight).sum(dtype=np.float64) / total) if total > 0 else float(luma.mean())
+    shade = np.clip(luma * np.float32(1.0 / max(mean, 1.0)), 0.4, 1.6)
+    return shade ** np.float32(0.8)
+
+
+# Rows of the patch textured at a time, to bound the texture's temporaries.
+_TEXTURE_ROWS = 256
+
+
+def _render_denim(
+    image: np.ndarray, box: tuple[int, int, int, int], layout: _Layout, coverage: np.ndarray,
+    weight: np.ndarray, garment: Garment, seed: int,
+) -> np.ndarray:
+    """Denim colour ``(h, w, 3) float32`` (0..255) over the patch ``box`` of ``image``.
+
+    ``weight`` is the jeans' final alpha there, which sets the shading's mean.
+    """
+    shape = h, w = coverage.shape
+    unit = layout.unit
+    rng = np.random.default_rng(seed)
+    details = _denim_details(layout, shape, garment, rng)
+
+    # Wear: lighter down the middle of each panel (it rubs), blotchy fading, and
+    # slubby warp yarns (streaks along the legs); a soft occlusion towards the outline
+    # makes the legs look round.
+    depth = cv2.distanceTransform((coverage > 0.5).astype(np.uint8), cv2.DIST_L2, 3)
+    period = max(3.0, unit / 170.0)
+    blotches = _FrameNoise(rng, layout, shape, 0.12 * unit, 0.2 * unit)
+    slubs = _FrameNoise(rng, layout, shape, 1.3 * period, 25 * period)
+    wobble = _FrameNoise(rng, layout, shape, 4 * period, 4 * period)
+    wear = details.wear
+    wear += 0.15 + 0.32 * _smoothstep(depth * np.float32(1.0 / (0.16 * unit)))
+    light = details.dark
+    light *= 0.7 + 0.3 * _smoothstep(depth * np.float32(1.0 / (0.07 * unit)))
+    del depth
+    light *= _photo_shading(image, box, weight, unit)
+
+    out = np.empty((h, w, 3), np.float32)
+    cx = (np.arange(w, dtype=np.float32) + 0.5)[None, :]
+    scale = np.float32(2 * np.pi / period)
+    for strip, top in enumerate(range(0, h, _TEXTURE_ROWS)):
+        rows = slice(top, min(top + _TEXTURE_ROWS, h))
+        cy = (np.arange(rows.start, rows.stop, dtype=np.float32) + 0.5)[:, None]
+        along = cx * np.float32(layout.across[0]) + cy * np.float32(layout.across[1])
+        downs = cx * np.float32(layout.down[0]) + cy * np.float32(layout.down[1])
+        # 2/1 twill: ridges at 45 degrees to the garment axes, rising to the right as
+        # on right-hand twill (mirrored on the cross-grain waistband), wobbling like
+        # real yarn; sharpened from a sine into flat-topped ridges in [0, 1].
+        phase = along + downs * (1.0 - 2.0 * details.flip[rows])
+        twill = np.sin(phase * scale + np.float32(0.35) * wobble.rows(rows.start, rows.stop))
+        twill = _smoothstep(0.5 + 0.9 * twill)
+        fade = np.clip(
+            wear[rows] + 0.12 * blotches.rows(rows.start, rows.stop) + 0.06 * slubs.rows(rows.start, rows.stop),
+            0.0, 1.0,
+        )
+        strip_rng = np.random.default_rng([seed, strip])
+        grain = 1.0 + 0.07 * _blur(strip_rng.standard_normal(fade.shape, dtype=np.float32), 0.5)
+        weft = (0.1 + 0.22 * fade) * twill
+        thread = details.thread[rows]
+        for c in range(3):
+            base = _INDIGO_DEEP[c] + (_INDIGO_WORN[c] - _INDIGO_DEEP[c]) * fade
+            base *= 0.82 + 0.3 * twill
+            base += weft * (_WEFT[c] - base)
+            base *= grain
+            base += thread * (_THREAD[c] * (0.75 + 0.3 * twill) - base)
+            base *= light[rows]
+            out[rows, :, c] = base
+    _paint_metal(out, details.metal, light)
+    return out
+
+
+def _paint_metal(out: np.ndarray, metal: list, light: np.ndarray) -> None:
+    """Domed brass button and copper rivets, lit from the top left, each in its own window."""
+    h, w = out.shape[:2]
+    for centre, radius, rgb in metal:
+        r = radius * 1.6
+        c0, c1 = max(int(centre[0] - r), 0), min(int(np.ceil(centre[0] + r)) + 1, w)
+        r0, r1 = max(int(centre[1] - r), 0), min(int(np.ceil(centre[1] + r)) + 1, h)
+        if c1 <= c0 or r1 <= r0:
+            continue
+        dx = (np.arange(c0, c1, dtype=np.float32) + 0.5 - centre[0])[None, :] / radius
+        dy = (np.arange(r0, r1, dtype=np.float32) + 0.5 - centre[1])[:, None] / radius
+        dist = np.sqrt(dx * dx + dy * dy)
+        aa = 1.0 / max(radius, 1.0)
+        disc = np.clip((1.0 - dist) / aa + 0.5, 0, 1)
+        shadow = np.clip((1.0 - np.sqrt((dx - 0.25) ** 2 + (dy - 0.3) ** 2)) / 0.3, 0, 1)
+        # Dome normal's z, and the highlight where it faces the light.
+        nz = np.sqrt(np.clip(1 - dist * dist, 0, 1))
+        lit = np.clip(0.5 + 0.6 * (-0.5 * dx - 0.6 * dy + 0.6 * nz), 0.25, 1.4)
+        spec = np.clip(1 - np.sqrt((dx + 0.35) ** 2 + (dy + 0.4) ** 2) / 0.35, 0, 1) ** 2
+        rim = np.clip((dist - 0.72) / 0.28, 0, 1)
+        window = out[r0:r1, c0:c1]
+        window *= (1 - 0.5 * shadow)[..., None]
+        colour = rgb * (lit * (1 - 0.45 * rim))[..., None] + 255 * spec[..., None] * 0.7
+        colour *= np.sqrt(light[r0:r1, c0:c1])[..., None]
+        window += disc[..., None] * (colour - window)
+
+
+# --------------------------------------------------------------------------- public API
+
+
+def _check_image(image: np.ndarray) -> np.ndarray:
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] not in (3, 4):
+        raise JeansError(
+            f"image must be an H x W x 3 or 4 uint8 array, got {image.dtype} {image.shape}"
+        )
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise JeansError("image is empty")
+    return image
+
+
+def _clip_weight(image: np.ndarray, mask: np.ndarray | None, box: tuple[int, int, int, int]) -> np.ndarray | None:
+    """The object's coverage ``(h, w) float32`` over the patch, or None for no clipping.
+
+    A float mask is taken as alpha; a boolean one is softened over about one pixel, so
+    its staircase edge does not show on the jeans' outline.
+    """
+    x0, y0, x1, y1 = box
+    if mask is None:
+        if image.shape[2] == 4:
+            return image[y0:y1, x0:x1, 3].astype(np.float32) / 255.0
+        return None
+    mask = np.asarray(mask)
+    if mask.shape != image.shape[:2]:
+        raise JeansError(f"mask shape {mask.shape} does not match the image {image.shape[:2]}")
+    if mask.dtype == bool:
+        # Blur with a 1-px apron so the patch edge sees the mask beyond it.
+        top, left = max(y0 - 1, 0), max(x0 - 1, 0)
+        crop = mask[top : y1 + 1, left : x1 + 1].astype(np.float32)
+        crop = cv2.GaussianBlur(crop, (3, 3), 0.6, borderType=cv2.BORDER_REPLICATE)
+        return np.ascontiguousarray(crop[y0 - top : y1 - top, x0 - left : x1 - left])
+    if not np.issubdtype(mask.dtype, np.number):
+        raise JeansError(f"mask must be boolean or numeric, got {mask.dtype}")
+    crop = mask[y0:y1, x0:x1].astype(np.float32)
+    if mask.dtype == np.uint8:
+        crop /= 255.0
+    if not np.all(np.isfinite(crop)):
+        raise JeansError("mask is not finite")
+    return np.clip(crop, 0.0, 1.0)
+
+
+def _paint_over(patch: np.ndarray, colour: np.ndarray, alpha: np.ndarray) -> None:
+    """Composite ``colour`` (``(h, w, 3)`` float32, or broadcastable) over the uint8
+    ``patch`` (RGB or RGBA, in place) with ``alpha`` ``(h, w)``; "over" on RGBA.
+
+    One channel at a time and only where the paint shows, so untouched pixels keep
+    their bytes and a huge patch needs a few float planes, not float images.
+    """
+    # Paint below half a level changes no byte of an opaque pixel; skipping it keeps
+    # float dust from the coverage's sums off the untouched pixels.
+    painted = alpha > 0.5 / 255
+    if patch.shape[2] == 4:
+        below = patch[..., 3].astype(np.float32) * np.float32(1 / 255)
+        below *= 1.0 - alpha  # the photo's share of the result
+        over = alpha + below
+        safe_over = np.maximum(over, 1e-6)
+        np.copyto(patch[..., 3], np.rint(over * 255.0), casting="unsafe", where=painted)
+    for c in range(3):
+        src = patch[..., c].astype(np.float32)
+        if patch.shape[2] == 4:
+            mixed = (colour[..., c] * alpha + src * below) / safe_over
+        else:
+            mixed = colour[..., c] - src
+            mixed *= alpha
+            mixed += src
+        np.clip(np.rint(mixed, out=mixed), 0, 255, out=mixed)
+        np.copyto(patch[..., c], mixed, casting="unsafe", where=painted)
+
+
+def composite_jeans(
+    image: np.ndarray,
+    vertices: np.ndarray,
+    garment: Garment = JEANS,
+    mask: np.ndarray | None = None,
+    *,
+    style: str = "denim",
+    clip: bool = True,
+    seed: int = 0,
+) -> np.ndarray:
+    """Paint the fitted jeans onto a photo.
+
+    Args:
+        image: ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8`` photo, full resolution.
+        vertices: ``(n, 2)`` fitted garment polygon in image pixels, garment vertex order.
+        garment: the garment the polygon is a fit of (its waist and open edges place
+            the waistband, hems and seams).
+        mask: ``(H, W)`` object silhouette, bool or float alpha in [0, 1] (uint8 is
+            read as 0..255). With ``clip=True`` the jeans are painted only on it; without
+            a mask, an RGBA image's alpha is used, and an RGB image is not clipped.
+        style: ``"denim"`` (procedural indigo jeans shaded by the photo) or ``"flat"``
+            (the paper's opaque blue ``(0, 0, 255)``).
+        clip: paint only on the object (True) or the whole polygon (False).
+        seed: seeds the denim's noise; the same inputs and seed give the same bytes.
+
+    Returns:
+        A new array of the same shape and dtype. Pixels outside the polygon's bounding
+        box (plus 2 px) are byte-identical to ``image``; alpha is composited "over",
+        so jeans painted on transparent pixels get alpha equal to their coverage.
+    """
+    image = _check_image(image)
+    vertices = _check_vertices(vertices, garment)
+    if style not in STYLES:
+        raise JeansError(f"unknown style {style!r} (known: {', '.join(STYLES)})")
+    out = image.copy()
+    box = _patch_box(vertices, *image.shape[:2])
+    if box is None:
+        return out
+    x0, y0, x1, y1 = box
+    local = vertices - np.array([x0, y0], np.float64)
+    coverage = polygon_coverage_patch(local, y1 - y0, x1 - x0)
+    weight = _clip_weight(image, mask, box) if clip else None
+    alpha = coverage if weight is None else coverage * weight
+    if not np.any(alpha > 0.5 / 255):
+        return out
+
+    if style == "flat":
+        jeans = np.broadcast_to(np.array(FLAT_BLUE, np.float32), (*alpha.shape, 3))
+    else:
+        layout = _layout(local, garment)
+        jeans = _render_denim(image, box, layout, coverage, alpha, garment, seed)
+
+    _paint_over(out[y0:y1, x0:x1], jeans, alpha)
+    return out
+
+
+def render_silhouette_figure(
+    silhouette: np.ndarray,
+    vertices: np.ndarray | None,
+    garment: Garment = JEANS,
+    supersample: int = 4,
+) -> np.ndarray:
+    """The paper's figure: black silhouette on white, blue jeans on top.
+
+    Args:
+        silhouette: ``(H, W)`` float alpha in [0, 1] (bool accepted), used as coverage.
+        vertices: ``(n, 2)`` jeans polygon in the silhouette's pixels, or None to draw
+            the silhouette alone.
+        supersample: accepted for API stability; the jeans' coverage is the exact pixel
+            area (the fitter's rasterizer), which any supersampling only approximates.
+
+    Returns:
+        ``(H, W, 3) uint8`` RGB.
+    """
+    sil = np.asarray(silhouette)
+    if sil.ndim != 2 or sil.size == 0:
+        raise JeansError(f"silhouette must be a non-empty H x W array, got shape {sil.shape}")
+    if not (np.issubdtype(sil.dtype, np.number) or sil.dtype == bool):
+        raise JeansError(f"silhouette must be boolean or numeric, got {sil.dtype}")
+    if int(supersample) < 1:
+        raise JeansError("supersample must be at least 1")
+    sil = np.clip(sil.astype(np.float32), 0.0, 1.0)
+    if not np.all(np.isfinite(sil)):
+        raise JeansError("silhouette is not finite")
+    figure = np.repeat((255.0 * (1.0 - sil))[..., None], 3, axis=2)
+    if vertices is not None:
+        vertices = _check_vertices(vertices, garment)
+        box = _patch_box(vertices, *sil.shape)
+        if box is not None:
+            x0, y0, x1, y1 = box
+            cover = polygon_coverage_patch(vertices - np.array([x0, y0], np.float64), y1 - y0, x1 - x0)
+            patch = figure[y0:y1, x0:x1]
+            patch += cover[..., None] * (np.array(FLAT_BLUE, np.float32) - patch)
+    return np.clip(np.rint(figure), 0, 255).astype(np.uint8)
