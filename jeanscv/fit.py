@@ -20,7 +20,7 @@ from .presets import Preset, get_preset
 # (scale, rotation in degrees) of the starts after the paper's own initialisation,
 # around the waistband centre moved to the canvas centre. They cover small and large
 # objects and bodies that are upright, lying or upside down.
-_PLACEMENTS = (
+DEFAULT_PLACEMENTS = (
     (0.6, 0.0),
     (0.8, 0.0),
     (0.45, 0.0),
@@ -69,7 +69,12 @@ class FitResult:
     extra: dict = field(default_factory=dict)
 
 
-def initial_placements(garment: Garment, starts: int, seed: int = 0) -> np.ndarray:
+def initial_placements(
+    garment: Garment,
+    starts: int,
+    seed: int = 0,
+    placements: tuple[tuple[float, float], ...] = DEFAULT_PLACEMENTS,
+) -> np.ndarray:
     """``(starts, N, 2)`` initial vertices in canvas pixels.
 
     Start 0 is the template itself (the paper's initialisation); the others are the
@@ -82,7 +87,7 @@ def initial_placements(garment: Garment, starts: int, seed: int = 0) -> np.ndarr
     centre = np.array([CANVAS_SIZE / 2, CANVAS_SIZE / 2])
     out = [template]
     for k in range(1, starts):
-        scale, degrees = _PLACEMENTS[(k - 1) % len(_PLACEMENTS)]
+        scale, degrees = placements[(k - 1) % len(placements)]
         angle = math.radians(degrees + rng.normal(0.0, 3.0))
         scale *= math.exp(rng.normal(0.0, 0.05))
         rot = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
@@ -207,7 +212,7 @@ def _fit(
     torch.manual_seed(seed)
     s = as_silhouette_tensor(silhouette, device)
 
-    init = torch.as_tensor(initial_placements(garment, num_starts, seed), dtype=torch.float32, device=device)
+    init = torch.as_tensor(initial_placements(garment, num_starts, seed, preset.placements or DEFAULT_PLACEMENTS), dtype=torch.float32, device=device)
     params = (init / CANVAS_SIZE).clone().requires_grad_(True)
     optimizer = torch.optim.Adam([params], lr=preset.learning_rate)
     history = np.full((iterations, num_starts), np.nan)
