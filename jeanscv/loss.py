@@ -13,6 +13,7 @@ full-canvas ones.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,14 +43,21 @@ _EPS = 1e-6
 
 
 def affine_residual_operator(template: np.ndarray) -> np.ndarray:
+    """``(N, N)`` matrix ``I - H`` whose product with ``X`` is ``X - T X̄`` (cached)."""
+    return _affine_residual_operator(np.asarray(template, dtype=np.float64).tobytes(), len(template)).copy()
+
+
+@functools.lru_cache(maxsize=32)
+def _affine_residual_operator(template_bytes: bytes, count: int) -> np.ndarray:
     """``(N, N)`` matrix ``I - H`` whose product with ``X`` is ``X - T X̄``.
 
     ``T`` is the least-squares affine map of the template ``X̄`` onto ``X``; ``H`` is
     the hat matrix of the design ``[X̄, 1]``, constant for a given template.
     """
-    design = np.hstack([np.asarray(template, dtype=np.float64), np.ones((len(template), 1))])
+    template = np.frombuffer(template_bytes, dtype=np.float64).reshape(count, 2)
+    design = np.hstack([template, np.ones((count, 1))])
     hat = design @ np.linalg.pinv(design)
-    return np.eye(len(template)) - hat
+    return np.eye(count) - hat
 
 
 @dataclass
@@ -121,10 +129,8 @@ def _shared_pixels(
     batch, num_edges, cells_per_edge = alpha.shape
     flat_key = key.reshape(-1).cpu().numpy()
     touched = (alpha.detach() > 0).reshape(-1).cpu().numpy()
-    # Band cells of one stroke are distinct pixels, so this counts strokes per pixel
-    # (uint8 saturating far above the garment's edge count is harmless).
-    counts = np.zeros(batch * pixels, np.uint8)
-    np.add.at(counts, flat_key[touched], 1)
+    # Band cells of one stroke are distinct pixels, so this counts strokes per pixel.
+    counts = np.bincount(flat_key[touched], minlength=batch * pixels)
     unique_key = np.flatnonzero(counts >= 2)
     shared = np.flatnonzero(touched & (counts[flat_key] >= 2))
     slot = np.searchsorted(unique_key, flat_key[shared])

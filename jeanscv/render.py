@@ -86,11 +86,16 @@ def _cut_at_grid(
     coordinate = torch.as_tensor(owner * 2 + np.minimum(axis, 1), device=device)
     a0 = start.reshape(-1).index_select(0, coordinate)
     span = delta.reshape(-1).index_select(0, coordinate)
-    safe_span = torch.where(span == 0, torch.ones_like(span), span)
-    line_t = torch.as_tensor(line, dtype=start.dtype, device=start.device)
-    t = torch.where(
-        torch.as_tensor(crossing, device=start.device), ((line_t - a0) / safe_span).clamp(0.0, 1.0), line_t
+    crossing_t = torch.as_tensor(crossing, device=device)
+    # Only crossings divide by the span; elsewhere, and for spans so tiny that the
+    # gradient 1/span would overflow, divide by a harmless stand-in instead, so the
+    # discarded branch of the where cannot put inf * 0 = NaN into the gradient.
+    tiny = span.abs() < 1e-12
+    safe_span = torch.where(
+        crossing_t & ~tiny, span, torch.where(crossing_t & (span < 0), -1e-12, 1e-12) if bool(tiny.any()) else 1.0
     )
+    line_t = torch.as_tensor(line, dtype=start.dtype, device=device)
+    t = torch.where(crossing_t, ((line_t - a0) / safe_span).clamp(0.0, 1.0), line_t)
     order = np.lexsort((t.detach().cpu().numpy(), owner))
     owner = owner[order]
     first_of_pair = order[np.flatnonzero(owner[:-1] == owner[1:])]

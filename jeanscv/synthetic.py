@@ -221,6 +221,34 @@ def _disc() -> np.ndarray:
     return _finish(img)
 
 
+def random_creature(seed: int) -> np.ndarray:
+    """A random creature: a body, 0-8 limbs, maybe a head and a tail, any pose.
+
+    Used to check the default preset on shapes nobody drew by hand. Framed like
+    every mask jeanscv fits (bounding box centred, longer side 90% of the canvas).
+    """
+    from .framing import frame_mask
+
+    rng = np.random.default_rng(seed)
+    img = _canvas()
+    angle = rng.uniform(-40, 40)
+    axes = (rng.uniform(30, 75), rng.uniform(18, 50))
+    centre = (128 + rng.uniform(-15, 15), 120 + rng.uniform(-15, 15))
+    _ellipse(img, centre, axes, angle)
+    for _ in range(int(rng.integers(0, 9))):
+        theta = rng.uniform(0, 2 * np.pi)
+        root = (centre[0] + 0.8 * axes[0] * math.cos(theta), centre[1] + 0.8 * axes[1] * math.sin(theta))
+        length = rng.uniform(20, 80)
+        bend = theta + rng.uniform(-0.8, 0.8)
+        tip = (root[0] + length * math.cos(bend), root[1] + length * math.sin(bend))
+        _limb(img, root, tip, rng.uniform(5, 18))
+    if rng.random() < 0.7:
+        theta = rng.uniform(-np.pi, 0)
+        head = (centre[0] + 0.95 * axes[0] * math.cos(theta), centre[1] + 0.95 * axes[1] * math.sin(theta))
+        _ellipse(img, head, (rng.uniform(10, 22), rng.uniform(10, 20)))
+    return frame_mask(_finish(img))[0]
+
+
 ZOO: dict[str, Callable[[], np.ndarray]] = {
     "person": lambda: _person(),
     "person_legs_apart": lambda: _person(legs_apart=28, arms_up=True),
