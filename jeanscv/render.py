@@ -43,7 +43,7 @@ import torch
 from torch import Tensor
 
 #: Segments per round cap of a stroke polygon.
-CAP_SEGMENTS = 16
+CAP_SEGMENTS = 8
 #: Stroke bands: cells per row, and how many of them lie left of the centre line.
 BAND_COLUMNS = 13
 BAND_LEFT = 6
