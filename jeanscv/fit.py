@@ -126,18 +126,35 @@ def as_silhouette_tensor(silhouette: np.ndarray | Tensor, device: str = "cpu") -
     return s
 
 
-def _keep_starts(
-    params: Tensor, optimizer: torch.optim.Adam, keep: Tensor
-) -> tuple[Tensor, torch.optim.Adam]:
-    """Shrink the batch to the starts in ``keep``, carrying Adam's moments along."""
-    kept = params.detach().index_select(0, keep).clone().requires_grad_(True)
-    new_optimizer = torch.optim.Adam([kept], **{k: v for k, v in optimizer.defaults.items() if k != "params"})
-    old_state = optimizer.state[params]
-    new_optimizer.state[kept] = {
-        name: value.index_select(0, keep).clone() if value.dim() and value.shape[0] == params.shape[0] else value.clone()
-        for name, value in old_state.items()
-    }
-    return kept, new_optimizer
+class BatchAdam:
+    """Adam (Kingma & Ba; torch.optim.Adam's defaults and update) over a batch of starts.
+
+    Written out because torch.optim imports torch._dynamo on first use (1.6 s per
+    process), and so the batch can shrink with its moments when starts are pruned.
+    """
+
+    def __init__(self, params: Tensor, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
+        self.params, self.lr, self.betas, self.eps = params, lr, betas, eps
+        self.exp_avg = torch.zeros_like(params)
+        self.exp_avg_sq = torch.zeros_like(params)
+        self.steps = 0
+
+    @torch.no_grad()
+    def step(self, grad: Tensor) -> None:
+        """One Adam update of ``params`` in place."""
+        beta1, beta2 = self.betas
+        self.steps += 1
+        self.exp_avg.mul_(beta1).add_(grad, alpha=1 - beta1)
+        self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+        step_size = self.lr / (1 - beta1**self.steps)
+        denom = (self.exp_avg_sq / (1 - beta2**self.steps)).sqrt_().add_(self.eps)
+        self.params.addcdiv_(self.exp_avg, denom, value=-step_size)
+
+    def keep(self, index: Tensor) -> None:
+        """Shrink the batch to the starts in ``index``, moments included."""
+        self.params = self.params.index_select(0, index)
+        self.exp_avg = self.exp_avg.index_select(0, index)
+        self.exp_avg_sq = self.exp_avg_sq.index_select(0, index)
 
 
 def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, garment: Garment, preset: Preset) -> int:
@@ -213,8 +230,7 @@ def _fit(
     s = as_silhouette_tensor(silhouette, device)
 
     init = torch.as_tensor(initial_placements(garment, num_starts, seed, preset.placements or DEFAULT_PLACEMENTS), dtype=torch.float32, device=device)
-    params = (init / CANVAS_SIZE).clone().requires_grad_(True)
-    optimizer = torch.optim.Adam([params], lr=preset.learning_rate)
+    optimizer = BatchAdam((init / CANVAS_SIZE).clone(), lr=preset.learning_rate)
     history = np.full((iterations, num_starts), np.nan)
     path = np.full((iterations + 1, num_starts, garment.num_vertices, 2), np.nan)
     path[0] = init.cpu().numpy()
@@ -230,26 +246,24 @@ def _fit(
     for step, sigma in enumerate(sigma_per_iteration):
         if sigma not in blurred_cache:
             blurred_cache[sigma] = _blurred(s, sigma)
-        optimizer.zero_grad(set_to_none=True)
+        params = optimizer.params.detach().requires_grad_(True)
         total, _ = objective(params * CANVAS_SIZE, blurred_cache[sigma])
         if not torch.isfinite(total).any():
             raise JeansError("the fit diverged (non-finite loss)")
         # Diverged starts must not poison the others: drop their gradient.
         total = torch.where(torch.isfinite(total), total, torch.zeros_like(total))
-        total.sum().backward()
-        params.grad = torch.nan_to_num(params.grad, nan=0.0, posinf=0.0, neginf=0.0)
-        optimizer.step()
+        (grad,) = torch.autograd.grad(total.sum(), params)
+        optimizer.step(torch.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0))
         history[step, active] = total.detach().cpu().numpy()
-        path[step + 1, active] = (params.detach() * CANVAS_SIZE).cpu().numpy()
+        path[step + 1, active] = (optimizer.params * CANVAS_SIZE).cpu().numpy()
         if step == prune_step:
             # Successive halving: keep optimising only the most promising starts.
             order = np.argsort(history[step, active], kind="stable")[: preset.keep]
-            keep_index = torch.as_tensor(np.sort(order), device=device)
-            params, optimizer = _keep_starts(params, optimizer, keep_index)
+            optimizer.keep(torch.as_tensor(np.sort(order), device=device))
             active = active[np.sort(order)]
 
     with torch.no_grad():
-        final = params * CANVAS_SIZE
+        final = optimizer.params * CANVAS_SIZE
         totals, terms = objective(final, s)
         totals = torch.where(torch.isfinite(totals), totals, torch.full_like(totals, math.inf))
         best = _select(final.double().cpu().numpy(), totals.cpu().numpy(), s.cpu().numpy(), garment, preset)

@@ -149,3 +149,18 @@ def test_rule_checks_on_hand_made_cases():
     assert report.on_body_fraction == pytest.approx(1.0)
     assert not report.self_intersects
     assert self_intersects(np.array([[0, 0], [10, 10], [10, 0], [0, 10]], float))
+
+
+def test_batch_adam_matches_torch_adam():
+    from jeanscv.fit import BatchAdam
+
+    start = torch.tensor([[1.0, -2.0], [0.5, 3.0]], dtype=torch.float64)
+    ours = BatchAdam(start.clone(), lr=1e-2)
+    theirs_param = start.clone().requires_grad_(True)
+    theirs = torch.optim.Adam([theirs_param], lr=1e-2)
+    for _ in range(50):
+        ours.step(2 * ours.params**3 - ours.params)
+        theirs.zero_grad()
+        (0.5 * theirs_param**4 - 0.5 * theirs_param**2).sum().backward()
+        theirs.step()
+    assert torch.allclose(ours.params, theirs_param.detach(), rtol=1e-10, atol=1e-12)

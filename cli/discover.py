@@ -1,0 +1,200 @@
+"""Turn the command line's PATH arguments into jobs: which files, and where their outputs go.
+
+Kept free of numpy, torch and Pillow so that ``--help`` and ``--version`` stay fast;
+the extension lists come from :mod:`jeanscv.io.image`, imported only when inputs are
+actually collected.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+SVG_EXTENSIONS = frozenset({".svg", ".svgz"})
+OUTPUT_FORMATS = ("png", "jpg", "webp")
+
+# Output extension kept for photos whose format the writers can encode; everything
+# else becomes PNG (lossless, keeps alpha), and RAW becomes JPEG like a camera would.
+_KEEP_EXTENSION = {".jpg": ".jpg", ".jpeg": ".jpeg", ".jpe": ".jpg", ".jfif": ".jpg",
+                   ".png": ".png", ".webp": ".webp", ".tif": ".tif", ".tiff": ".tiff"}
+_GLOB_CHARS = frozenset("*?[")
+
+
+@dataclass
+class Job:
+    """One input file and the paths of everything written for it.
+
+    ``display``: the input path as shown to the user (the argument, or the folder
+    argument joined with the path found under it). ``outputs``: output kind
+    (``image``, ``json``, ``svg``, ``gif``) -> path.
+    """
+
+    index: int
+    path: Path
+    display: str
+    outputs: dict[str, Path] = field(default_factory=dict)
+
+
+@dataclass
+class Problem:
+    """An argument or file that could not become a job: shown as ``jeanscv: WHAT: reason``."""
+
+    display: str
+    reason: str
+
+
+@dataclass
+class Collection:
+    """Everything found on the command line, in order."""
+
+    jobs: list[Job]
+    problems: list[Problem]
+    ignored: list[str]  # files in folders that are not images (skipped quietly)
+    own_outputs: list[str]  # named files that are jeanscv outputs (``*.jeans.*``)
+
+
+def is_own_output(path: Path) -> bool:
+    """True for ``name.jeans.ext`` files: jeanscv's outputs are never inputs."""
+    suffixes = path.name.split(".")
+    return len(suffixes) >= 3 and suffixes[-2].lower() == "jeans"
+
+
+def candidate_extensions() -> frozenset[str]:
+    """Lower-case extensions taken from folders: photos, RAW and SVG."""
+    from jeanscv.io.image import SUPPORTED_EXTENSIONS
+
+    return SUPPORTED_EXTENSIONS | SVG_EXTENSIONS
+
+
+def image_extension(input_path: Path, fmt: str | None) -> str:
+    """The extension (with dot) of the picture written for ``input_path``.
+
+    Decided from the name alone, so that a resumed run finds the outputs of the
+    previous one without decoding anything: SVG -> ``.png`` (the paper figure),
+    RAW -> ``.jpg``, JPEG/PNG/WebP/TIFF keep theirs, other formats -> ``.png``;
+    ``fmt`` (``png``/``jpg``/``webp``) overrides all.
+    """
+    if fmt:
+        return "." + fmt
+    from jeanscv.io.image import RAW_EXTENSIONS
+
+    suffix = input_path.suffix.lower()
+    if suffix in RAW_EXTENSIONS:
+        return ".jpg"
+    return _KEEP_EXTENSION.get(suffix, ".png")
+
+
+def _walk(folder: Path, recursive: bool) -> list[Path]:
+    """Files in ``folder`` (and below when ``recursive``), sorted, hidden names left out."""
+    found = []
+    if recursive:
+        for root, dirs, files in os.walk(folder):
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+            found.extend(Path(root) / f for f in files if not f.startswith("."))
+    else:
+        found = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")]
+    return sorted(found, key=lambda p: p.relative_to(folder).parts)
+
+
+def _expand(argument: str) -> list[str] | None:
+    """Glob matches of ``argument``, sorted; None when it is not a pattern (or exists as named)."""
+    if os.path.exists(argument) or not (_GLOB_CHARS & set(argument)):
+        return None
+    return sorted(glob.glob(argument, recursive=True))
+
+
+def collect(
+    arguments: list[str],
+    recursive: bool = False,
+    output_dir: Path | None = None,
+    fmt: str | None = None,
+    extras: tuple[str, ...] = (),
+) -> Collection:
+    """Expand the PATH arguments into jobs with their output paths.
+
+    Named files are always jobs (a bad one fails when it is read); folders give their
+    files with a supported extension; glob patterns are expanded here (sorted) so they
+    work without a shell. With ``output_dir``, outputs mirror each file's folder relative
+    to the folder argument that found it; named files go to its root. ``extras`` lists
+    the sidecars wanted (``json``, ``svg``, ``gif``). The same file named twice becomes
+    one job. When two inputs would share outputs (``dog.png`` and ``dog.svg``), the second
+    keeps its extension in their names (``dog.svg.jeans.png``).
+    """
+    extensions = candidate_extensions()
+    found: list[tuple[Path, str, Path]] = []  # (path, display, relative folder)
+    problems: list[Problem] = []
+    ignored: list[str] = []
+    own: list[str] = []
+
+    def add_folder(folder: Path, display: str) -> None:
+        before = len(found)
+        for path in _walk(folder, recursive):
+            shown = str(Path(display, *path.relative_to(folder).parts))
+            if is_own_output(path):
+                continue
+            if path.suffix.lower() in extensions:
+                found.append((path, shown, path.parent.relative_to(folder)))
+            else:
+                ignored.append(shown)
+        if len(found) == before:
+            where = "in this folder or its subfolders" if recursive else "in this folder (use -r to search subfolders)"
+            problems.append(Problem(display, f"no supported images found {where}"))
+
+    for argument in arguments:
+        matches = _expand(argument)
+        names = [argument] if matches is None else matches
+        if matches == []:
+            problems.append(Problem(argument, "no files match this pattern"))
+        for name in names:
+            path = Path(name)
+            if path.is_dir():
+                add_folder(path, name)
+            elif not os.path.lexists(path):
+                problems.append(Problem(name, "file not found"))
+            elif is_own_output(path):
+                own.append(name)
+            else:
+                found.append((path, name, Path()))
+
+    jobs: list[Job] = []
+    inputs = {_identity(path) for path, _, _ in found}
+    claimed: dict[str, str] = {}  # output path -> display name of the input that owns it
+    seen: set[str] = set()
+    for path, display, relative in found:
+        key = _identity(path)
+        if key in seen:
+            continue  # the same file named twice (or by a folder and by name)
+        seen.add(key)
+        folder = path.parent if output_dir is None else output_dir / relative
+        outputs = _outputs(folder / path.stem, path, fmt, extras)
+        keys = [_identity(p) for p in outputs.values()]
+        if any(k in claimed for k in keys):
+            # dog.png and dog.svg side by side: the second keeps its extension in the name.
+            outputs = _outputs(folder / path.name, path, fmt, extras)
+            keys = [_identity(p) for p in outputs.values()]
+        clash = next((claimed[k] for k in keys if k in claimed), None)
+        if clash is not None:
+            problems.append(Problem(display, f"its output {outputs['image'].name} would also be the output of {clash}"))
+        elif any(k in inputs for k in keys):
+            # Only possible with odd names; an input is never replaced.
+            problems.append(Problem(display, "its output would overwrite an input file"))
+        else:
+            claimed.update(dict.fromkeys(keys, display))
+            jobs.append(Job(len(jobs), path, display, outputs))
+    return Collection(jobs, problems, ignored, own)
+
+
+def _outputs(base: Path, path: Path, fmt: str | None, extras: tuple[str, ...]) -> dict[str, Path]:
+    """Output paths ``base.jeans.EXT`` for the picture and each sidecar in ``extras``."""
+    stem = base.name + ".jeans"
+    outputs = {"image": base.with_name(stem + image_extension(path, fmt))}
+    for extra in extras:
+        outputs[extra] = base.with_name(f"{stem}.{extra}")
+    return outputs
+
+
+def _identity(path: Path) -> str:
+    """A comparable key for a path (absolute, normalised, case as given)."""
+    return os.path.normcase(os.path.abspath(path))

@@ -1,0 +1,280 @@
+"""The CLI's extra outputs: vector SVG overlay, optimisation GIF, meme captions, side by side.
+
+Images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8``; points are ``(N, 2)``
+float64 ``(x, y)`` in image pixels (package convention: pixel ``(c, r)`` covers
+``[c, c+1) x [r, r+1)``).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import textwrap
+from pathlib import Path
+from xml.sax.saxutils import escape, quoteattr
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+
+GIF_MAX_SIDE = 320
+JEANS_BLUE = (0, 0, 255)
+_FRAME_MS = 80
+_LAST_FRAME_MS = 1500
+_MAX_CAPTION_LINES = 3
+
+
+# ------------------------------------------------------------------ silhouette geometry
+
+
+# ------------------------------------------------------------------------------- SVG
+
+
+def _num(value: float) -> str:
+    return format(float(value), ".6g")
+
+
+def svg_document(
+    vertices: np.ndarray, contours: list[np.ndarray], size: tuple[int, int], title: str = ""
+) -> str:
+    """An SVG of the fit in image pixels: black silhouette, blue jeans polygon.
+
+    Args:
+        vertices: ``(N, 2)`` jeans polygon, image pixels.
+        contours: silhouette boundaries ``[(K, 2)]``, image pixels, filled even-odd.
+        size: ``(width, height)`` of the image; also the viewBox.
+    """
+    width, height = size
+    lines = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+        f'viewBox="0 0 {width} {height}">',
+    ]
+    if title:
+        lines.append(f"  <title>{escape(title)}</title>")
+    lines.append(f'  <rect id="background" x="0" y="0" width="{width}" height="{height}" fill="#ffffff"/>')
+    if contours:
+        d = " ".join(
+            "M" + " L".join(f"{_num(x)},{_num(y)}" for x, y in c) + " Z" for c in contours
+        )
+        lines.append(f'  <path id="silhouette" d={quoteattr(d)} fill="#000000" fill-rule="evenodd"/>')
+    points = " ".join(f"{_num(x)},{_num(y)}" for x, y in np.asarray(vertices, dtype=np.float64))
+    lines.append(f'  <polygon id="jeans" points="{points}" fill="#0000ff"/>')
+    lines.append("</svg>")
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------- GIF
+
+
+def frame_indices(iterations: int, frames: int) -> np.ndarray:
+    """Which trajectory steps (0..iterations) become frames: evenly spaced, first and last included."""
+    count = max(1, min(frames, iterations + 1))
+    return np.unique(np.round(np.linspace(0, iterations, count)).astype(int))
+
+
+def _scaled(image_size: tuple[int, int], max_side: int) -> tuple[float, tuple[int, int]]:
+    width, height = image_size
+    scale = min(1.0, max_side / max(width, height))
+    return scale, (max(1, round(width * scale)), max(1, round(height * scale)))
+
+
+def _resize_float(plane: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Area-average a ``(H, W)`` float plane to ``size`` = (width, height)."""
+    if plane.shape[::-1] == tuple(size):
+        return plane.astype(np.float32)
+    return np.asarray(Image.fromarray(plane.astype(np.float32), "F").resize(size, Image.Resampling.BOX))
+
+
+def on_white(image: np.ndarray) -> np.ndarray:
+    """RGB(A) -> RGB, transparent parts over white (for JPEG and GIF frames)."""
+    if image.ndim == 3 and image.shape[2] == 4:
+        alpha = image[..., 3:].astype(np.float32) / 255.0
+        rgb = image[..., :3].astype(np.float32) * alpha + 255.0 * (1.0 - alpha)
+        return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+    return image
+
+
+def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE) -> bytes:
+    """An animated GIF of the fit: the jeans at evenly spaced iterations, in the paper's style.
+
+    Silhouettes are drawn black on white; photos are shown downscaled. A thin bar along
+    the bottom shows the progress through the iterations; the last frame is held.
+    Needs ``result.fit.trajectory``: ``(iterations + 1, N, 2)`` canvas pixels.
+    """
+    from jeanscv.composite import composite_jeans, render_silhouette_figure
+
+    fit, silhouette = result.fit, result.silhouette
+    trajectory = np.asarray(fit.trajectory, dtype=np.float64)
+    steps = frame_indices(trajectory.shape[0] - 1, max_frames)
+    if result.kind == "silhouette":
+        mask = np.asarray(silhouette.mask, dtype=np.float32)
+        scale, size = _scaled(mask.shape[::-1], max_side)
+        small = _resize_float(mask, size)
+
+        def draw(canvas_vertices: np.ndarray) -> np.ndarray:
+            verts = silhouette.to_mask(canvas_vertices) * scale
+            return render_silhouette_figure(small, verts, fit.garment)
+    else:
+        photo = on_white(result.source.pixels if result.source is not None else result.image)
+        scale, size = _scaled(photo.shape[1::-1], max_side)
+        small = np.asarray(Image.fromarray(photo).resize(size, Image.Resampling.LANCZOS))
+
+        def draw(canvas_vertices: np.ndarray) -> np.ndarray:
+            verts = silhouette.framing.to_image(canvas_vertices) * scale
+            return composite_jeans(small, verts, fit.garment, None, style="flat", clip=False)
+
+    width, height = size
+    bar = max(2, height // 80)
+    last = max(int(steps[-1]), 1)
+    frames = []
+    for step in steps:
+        frame = draw(trajectory[step])
+        done = int(round(width * step / last))
+        frame[height - bar :, :done] = JEANS_BLUE
+        frames.append(Image.fromarray(frame))
+    durations = [_FRAME_MS] * (len(frames) - 1) + [_LAST_FRAME_MS]
+    buffer = io.BytesIO()
+    frames[0].save(
+        buffer, "GIF", save_all=True, append_images=frames[1:], duration=durations, loop=0, disposal=1
+    )
+    return buffer.getvalue()
+
+
+# ---------------------------------------------------------------------------- memes
+
+_FONT_CANDIDATES = (
+    "Impact.ttf", "impact.ttf", "Anton-Regular.ttf", "DejaVuSans-Bold.ttf", "LiberationSans-Bold.ttf",
+)
+_FONT_DIRS = (
+    Path(__file__).parent / "fonts",
+    Path("/usr/share/fonts/truetype/dejavu"),
+    Path("/usr/share/fonts/TTF"),
+    Path("/usr/share/fonts/dejavu"),
+    Path("/usr/share/fonts/truetype/liberation"),
+    Path("/Library/Fonts"),
+    Path("/System/Library/Fonts/Supplemental"),
+    Path(os.environ.get("WINDIR", "C:/Windows")) / "Fonts",
+)
+
+
+def find_font() -> Path | None:
+    """A bold sans font file for captions, or None for Pillow's bundled default.
+
+    ``$JEANSCV_FONT`` wins; then a font in ``cli/fonts``; then Impact, Anton, DejaVu
+    Sans Bold or Liberation Sans Bold from the usual system folders; then matplotlib's
+    copy of DejaVu Sans Bold, if matplotlib is installed (found without importing it).
+    """
+    override = os.environ.get("JEANSCV_FONT")
+    if override and Path(override).is_file():
+        return Path(override)
+    bundled = sorted((Path(__file__).parent / "fonts").glob("*.[to]tf"))
+    if bundled:
+        return bundled[0]
+    for folder in _FONT_DIRS:
+        for name in _FONT_CANDIDATES:
+            if (folder / name).is_file():
+                return folder / name
+    import importlib.util
+
+    spec = importlib.util.find_spec("matplotlib")
+    if spec is not None and spec.submodule_search_locations:
+        for location in spec.submodule_search_locations:
+            candidate = Path(location) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans-Bold.ttf"
+            if candidate.is_file():
+                return candidate
+    return None
+
+
+def _font(size: int, path: Path | None):
+    if path is not None:
+        try:
+            return ImageFont.truetype(str(path), size)
+        except OSError:
+            pass  # unreadable font file: fall back to the bundled one
+    return ImageFont.load_default(size=size)
+
+
+def _wrap(text: str, font, stroke: int, max_width: float) -> list[str] | None:
+    """Greedy word wrap to ``max_width`` pixels; None when one word alone is too wide."""
+    lines: list[str] = []
+    for word in text.split():
+        trial = f"{lines[-1]} {word}" if lines else word
+        if lines and font.getlength(trial) + 2 * stroke <= max_width:
+            lines[-1] = trial
+        elif font.getlength(word) + 2 * stroke <= max_width:
+            lines.append(word)
+        else:
+            return None
+    return lines
+
+
+def layout_caption(text: str, width: int, height: int, font_path: Path | None = None):
+    """Font, stroke width and lines for a classic meme caption across ``width`` pixels.
+
+    Fewer lines win over a bigger font: the largest size (at most 1/8 of the height)
+    at which the upper-case text fits 94% of the width on one line, else on two, else
+    on three, each with a smaller size floor; past that the smallest size is used and
+    the text is cut to three lines with an ellipsis.
+    """
+    text = " ".join(text.upper().split())
+    max_width = 0.94 * width
+    largest = max(8, int(min(height / 8, width / 4)))
+    for lines_allowed, floor in ((1, height / 12), (2, height / 16), (3, height / 24)):
+        size = largest
+        while size >= max(8, int(floor)):
+            font = _font(size, font_path)
+            stroke = max(1, round(size / 14))
+            lines = _wrap(text, font, stroke, max_width)
+            if lines is not None and len(lines) <= lines_allowed:
+                return font, stroke, lines
+            size = int(size * 0.92) if size > 8 else 0
+    size = max(8, int(height / 24))
+    font = _font(size, font_path)
+    stroke = max(1, round(size / 14))
+    chars = max(1, int(max_width / max(font.getlength("W"), 1)))
+    lines = textwrap.wrap(text, chars, break_long_words=True) or [""]
+    if len(lines) > _MAX_CAPTION_LINES:
+        lines = lines[:_MAX_CAPTION_LINES]
+        lines[-1] = lines[-1][: max(0, chars - 1)] + "\u2026"
+    return font, stroke, lines
+
+
+def add_captions(image: np.ndarray, top: str | None, bottom: str | None) -> np.ndarray:
+    """Classic meme captions: bold white upper-case text with a black outline,
+    ``top`` along the top edge and ``bottom`` along the bottom edge. Returns a copy."""
+    if not (top or bottom):
+        return image
+    canvas = Image.fromarray(np.ascontiguousarray(image))
+    draw = ImageDraw.Draw(canvas)
+    width, height = canvas.size
+    font_path = find_font()
+    margin = max(2, height // 40)
+    fill = (255, 255, 255, 255) if canvas.mode == "RGBA" else (255, 255, 255)
+    outline = (0, 0, 0, 255) if canvas.mode == "RGBA" else (0, 0, 0)
+    for text, at_top in ((top, True), (bottom, False)):
+        if not text or not text.strip():
+            continue
+        font, stroke, lines = layout_caption(text, width, height, font_path)
+        ascent, descent = font.getmetrics()
+        line_height = ascent + descent + stroke
+        y = margin if at_top else height - margin - line_height * len(lines)
+        for line in lines:
+            x = (width - font.getlength(line)) / 2
+            draw.text((x, y), line, font=font, fill=fill, stroke_width=stroke, stroke_fill=outline)
+            y += line_height
+    return np.asarray(canvas).copy()
+
+
+def side_by_side(left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """``left | right`` (same height); RGB and RGBA mixed become RGBA."""
+    if left.shape[0] != right.shape[0]:
+        raise ValueError("side by side needs images of the same height")
+    channels = max(left.shape[2], right.shape[2])
+
+    def widen(image: np.ndarray) -> np.ndarray:
+        if image.shape[2] == channels:
+            return image
+        return np.concatenate([image, np.full(image.shape[:2] + (1,), 255, np.uint8)], axis=2)
+
+    return np.concatenate([widen(left), widen(right)], axis=1)

@@ -1,0 +1,331 @@
+"""The ``jeanscv`` command: put jeans on every silhouette and photo you name.
+
+Only click is imported at module level: ``jeanscv --help`` and ``--version`` must not
+load torch, kornia, OpenCV or rawpy. Everything else is imported inside the command.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+
+import click
+
+from jeanscv import __version__
+
+EPILOG = """\b
+Examples:
+  jeanscv dog.svg                       dog.jeans.png (the paper's figure)
+  jeanscv cat.jpg --style flat          cat.jeans.jpg, jeans in the paper's blue
+  jeanscv photos/ -r -o out/ -j 2       every image below photos/, mirrored under out/
+  jeanscv 'shots/*.NEF' --format webp   RAW files, globs expanded by jeanscv itself
+  jeanscv cat.jpg --top "how would" --bottom "a cat wear jeans" --side-by-side
+  jeanscv horse.png --json --svg --gif  sidecars: report, vector overlay, animation
+  jeanscv cat.jpg --mask cat_mask.png   your own mask instead of the segmentation
+
+\b
+Outputs are written next to each input as NAME.jeans.EXT (or under -o DIR).
+Existing outputs are skipped unless --overwrite, so an interrupted run resumes.
+Exit status: 0 all done, 1 some input failed, 2 usage error, 130/143 interrupted.
+"""
+
+
+def _parse_rect(ctx: click.Context, param: click.Parameter, value: str | None):
+    if value is None:
+        return None
+    try:
+        x, y, w, h = (int(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter("expected four integers X,Y,W,H, e.g. 10,20,300,200") from None
+    if w <= 0 or h <= 0:
+        raise click.BadParameter("width and height must be positive")
+    return x, y, w, h
+
+
+def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from jeanscv.presets import DEFAULT_PRESET, PRESETS
+
+    for name, preset in PRESETS.items():
+        mark = " (default)" if name == DEFAULT_PRESET else ""
+        click.echo(f"{name}{mark}: {preset.description}")
+    ctx.exit(0)
+
+
+def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from jeanscv.garments import GARMENTS
+
+    for name, garment in GARMENTS.items():
+        click.echo(f"{name}: {garment.description}")
+    ctx.exit(0)
+
+
+@click.command(
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
+    epilog=EPILOG,
+)
+@click.argument("paths", nargs=-1, metavar="PATH...")
+@click.option("-o", "--output-dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Write outputs here, mirroring the input folders (default: next to each input).")
+@click.option("-r", "--recursive", is_flag=True, help="Descend into subfolders of folder arguments.")
+@click.option("--format", "fmt", type=click.Choice(["png", "jpg", "webp"]),
+              help="Output image format (default: photos keep theirs, RAW -> jpg, silhouettes -> png).")
+@click.option("--overwrite", is_flag=True, help="Redo inputs whose outputs already exist.")
+@click.option("--json", "want_json", is_flag=True, help="Also write NAME.jeans.json: the fit report.")
+@click.option("--svg", "want_svg", is_flag=True, help="Also write NAME.jeans.svg: silhouette and jeans as vectors.")
+@click.option("--gif", "want_gif", is_flag=True, help="Also write NAME.jeans.gif: the optimisation, animated.")
+@click.option("--gif-frames", type=click.IntRange(2, 500), default=50, show_default=True,
+              help="Most frames in the --gif animation.")
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write a JSON-lines report, one line per input, to this file.")
+@click.option("--preset", default="default", show_default=True, help="Fitting preset (see --list-presets).")
+@click.option("--garment", default="jeans", show_default=True,
+              help="Garment: a name (see --list-garments) or a .toml file.")
+@click.option("--iterations", type=click.IntRange(0), default=100, show_default=True,
+              help="Optimiser steps.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed (same seed, same result).")
+@click.option("--starts", type=click.IntRange(1), help="Initial placements tried (default: the preset's).")
+@click.option("--kind", type=click.Choice(["auto", "silhouette", "photo"]), default="auto", show_default=True,
+              help="Treat inputs as silhouette drawings or photos.")
+@click.option("--silhouette", "silhouette_method", type=click.Choice(["auto", "alpha", "threshold", "grabcut"]),
+              default="auto", show_default=True, help="How to cut the object out of a photo.")
+@click.option("--threshold", type=click.FloatRange(0, 255), help="Grey level for --silhouette threshold.")
+@click.option("--mask", type=click.Path(exists=True, dir_okay=False), help="Mask image for a single input.")
+@click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")
+@click.option("--style", type=click.Choice(["denim", "flat"]), default="denim", show_default=True,
+              help="denim texture, or the paper's flat blue.")
+@click.option("--clip/--no-clip", default=True, show_default=True, help="Paint jeans only on the object.")
+@click.option("--top", metavar="TEXT", help="Meme caption along the top.")
+@click.option("--bottom", metavar="TEXT", help="Meme caption along the bottom.")
+@click.option("--side-by-side", is_flag=True, help="Output the original and the result side by side.")
+@click.option("--max-pixels", type=click.IntRange(1), default=100_000_000, show_default=True,
+              help="Refuse images larger than this.")
+@click.option("--raw-full-size", is_flag=True, help="Decode RAW files at full size (default: half size).")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+              help="Where to fit.")
+@click.option("-j", "--jobs", type=click.IntRange(1), default=1, show_default=True,
+              help="Worker processes for many inputs.")
+@click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
+@click.option("-v", "--verbose", is_flag=True, help="Print the silhouette method, device and losses per file.")
+@click.option("--list-presets", is_flag=True, expose_value=False, is_eager=True, callback=_list_presets,
+              help="List the presets and exit.")
+@click.option("--list-garments", is_flag=True, expose_value=False, is_eager=True, callback=_list_garments,
+              help="List the garments and exit.")
+@click.version_option(__version__, "--version", prog_name="jeanscv", message="%(prog)s %(version)s")
+@click.pass_context
+def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
+    """Put jeans on the objects in PATH... (SVG or PNG silhouettes, photos, camera RAW).
+
+    PATH may be files, folders (with -r, their subfolders too) and glob patterns.
+    How would this thing wear jeans? (Pagurek's jalgorithm, SIGBOVIK 2023.)
+    """
+    try:
+        code = _main(ctx, paths, **kw)
+    except KeyboardInterrupt:
+        code = 130
+    ctx.exit(code)
+
+
+def _usage(message: str) -> click.UsageError:
+    return click.UsageError(message)
+
+
+def _main(
+    ctx: click.Context, paths: tuple[str, ...], *, output_dir, recursive, fmt, overwrite, want_json, want_svg,
+    want_gif, gif_frames, report, preset, garment, iterations, seed, starts, kind, silhouette_method, threshold,
+    mask, rect, style, clip, top, bottom, side_by_side, max_pixels, raw_full_size, device, jobs, quiet, verbose,
+) -> int:
+    if not paths:
+        raise _usage("no PATH given: name files, folders or patterns (see --help)")
+    from jeanscv.api import resolve_device
+    from jeanscv.errors import JeansError
+    from jeanscv.garments import get_garment
+    from jeanscv.presets import get_preset
+
+    from .discover import collect
+    from .progress import Progress
+    from .worker import Options, Outcome, one_line, wanted_outputs
+
+    for lookup, value, hint in ((get_preset, preset, "'--preset'"), (get_garment, garment, "'--garment'")):
+        try:
+            lookup(value)
+        except JeansError as exc:
+            raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
+
+    try:
+        device = resolve_device(device)
+    except JeansError as exc:
+        click.echo(f"jeanscv: {one_line(exc)}", err=True)
+        return 2
+
+    extras = tuple(name for name, wanted in (("json", want_json), ("svg", want_svg), ("gif", want_gif)) if wanted)
+    found = collect(list(paths), recursive, output_dir, fmt, extras)
+    if mask is not None and len(found.jobs) + len(found.problems) != 1:
+        raise _usage("--mask needs exactly one input image")
+    options = Options(
+        preset=preset, garment=garment, iterations=iterations, seed=seed, starts=starts, kind=kind,
+        silhouette=silhouette_method, threshold=threshold, mask=mask, rect=rect, style=style, clip=clip,
+        max_pixels=max_pixels, raw_full_size=raw_full_size, device=device, overwrite=overwrite, top=top,
+        bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,
+    )
+
+    progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
+    noun = "input" if len(found.jobs) == 1 else "inputs"
+    progress.info(f"jeanscv {__version__}: {len(found.jobs)} {noun}, device {device}, preset {preset}, "
+                  f"{iterations} iterations")
+    records: list[dict] = []
+    for problem in found.problems:
+        progress.error(problem.display, problem.reason)
+        progress.counts["failed"] += 1
+        records.append({"status": "failed", "input": problem.display, "output": "", "written": [],
+                        "error": problem.reason, "seconds": 0.0})
+    progress.skip_quietly(len(found.ignored))
+    for name in found.ignored:
+        records.append({"status": "skipped", "input": name, "output": "", "written": [], "error": "",
+                        "reason": "not a supported image type", "seconds": 0.0})
+    for name in found.own_outputs:
+        progress.info(f"{name}: skipped (a jeanscv output, not an input)")
+        progress.counts["skipped"] += 1
+        records.append({"status": "skipped", "input": name, "output": "", "written": [], "error": "",
+                        "reason": "a jeanscv output", "seconds": 0.0})
+
+    outcomes: dict[int, Outcome] = {}
+    pending = []
+    for job in found.jobs:
+        if wanted_outputs(job, overwrite):
+            pending.append(job)
+        else:
+            outcome = Outcome(job.index, job.display, "skipped", str(job.outputs["image"]),
+                              error="output exists; --overwrite redoes it")
+            outcomes[job.index] = outcome
+            progress.finish(outcome)
+
+    code = 0
+    previous = _install_sigterm()
+    try:
+        if jobs > 1 and len(pending) > 1:
+            _run_parallel(pending, options, min(jobs, len(pending)), progress, outcomes)
+        else:
+            _run_serial(pending, options, progress, outcomes)
+    except KeyboardInterrupt:
+        code = 130
+    except _Terminated:
+        code = 143
+    finally:
+        _restore_sigterm(previous)
+        if code:
+            progress.error("interrupted", "finished outputs are kept; run again to resume")
+        records += [outcomes[i].record() for i in sorted(outcomes)]
+        progress.summary()
+        if report is not None and not _write_report(report, records, progress):
+            code = code or 1
+    if code:
+        return code
+    return 1 if progress.counts["failed"] else 0
+
+
+class _Terminated(BaseException):
+    """SIGTERM in the main process: unwinds like Ctrl-C."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise _Terminated()
+
+
+def _install_sigterm():
+    try:
+        return signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:  # not the main thread (embedded use): leave signals alone
+        return None
+
+
+def _restore_sigterm(previous) -> None:
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_serial(pending, options, progress, outcomes) -> None:
+    from .worker import process
+
+    for job in pending:
+        progress.start(job.display)
+        outcome = process(job, options)
+        outcomes[job.index] = outcome
+        progress.finish(outcome)
+
+
+def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
+    """Process ``pending`` in ``workers`` spawned processes, each with its share of the cores."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from jeanscv.__main__ import worker_init
+
+    from .worker import Outcome, process_in_worker
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+        initializer=worker_init, initargs=(threads,),
+    )
+    clean = False
+    try:
+        futures = {pool.submit(process_in_worker, job, options): job for job in pending}
+        progress.start(f"{workers} workers")
+        for future in as_completed(futures):
+            job = futures[future]
+            try:
+                outcome = future.result()
+            except Exception as exc:  # noqa: BLE001 - a worker died (crash, killed): this file failed
+                outcome = Outcome(job.index, job.display, "failed",
+                                  error=f"worker process died ({type(exc).__name__})")
+            outcomes[job.index] = outcome
+            progress.finish(outcome)
+        clean = True
+    finally:
+        if clean:
+            pool.shutdown(wait=True)
+        else:
+            _stop_pool(pool)
+
+
+def _stop_pool(pool) -> None:
+    """Cancel queued files and stop the workers; a worker mid-file removes its temporary file."""
+    processes = list(getattr(pool, "_processes", {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            process.terminate()  # SIGTERM: see worker.init_worker
+    for process in processes:
+        process.join(timeout=10)
+        if process.is_alive():
+            process.kill()
+
+
+def _write_report(path: Path, records: list[dict], progress) -> bool:
+    from jeanscv.errors import JeansError
+    from jeanscv.io.write import write_text
+
+    text = "".join(json.dumps(r, sort_keys=True) + "\n" for r in records)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text(path, text)
+    except (OSError, JeansError) as exc:
+        progress.error(str(path), f"cannot write the report: {exc}")
+        return False
+    return True
+
+
+def main() -> None:
+    """Console-script entry point."""
+    cli(prog_name="jeanscv")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

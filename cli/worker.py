@@ -1,0 +1,254 @@
+"""Process one input file: decode, fit, composite, and write its outputs.
+
+Runs in the main process or in a worker process (``-j``), so everything here is
+picklable and the heavy modules are imported on first use.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .discover import Job
+
+
+@dataclass(frozen=True)
+class Options:
+    """The per-file settings from the command line (device already resolved)."""
+
+    preset: str = "default"
+    garment: str = "jeans"
+    iterations: int = 100
+    seed: int = 0
+    starts: int | None = None
+    kind: str = "auto"
+    silhouette: str = "auto"
+    threshold: float | None = None
+    mask: str | None = None
+    rect: tuple[int, int, int, int] | None = None
+    style: str = "denim"
+    clip: bool = True
+    max_pixels: int = 100_000_000
+    raw_full_size: bool = False
+    device: str = "cpu"
+    overwrite: bool = False
+    top: str | None = None
+    bottom: str | None = None
+    side_by_side: bool = False
+    gif_frames: int = 50
+
+
+@dataclass
+class Outcome:
+    """What happened to one input: ``status`` is ``ok``, ``failed`` or ``skipped``."""
+
+    index: int
+    input: str
+    status: str
+    output: str = ""
+    written: list[str] = field(default_factory=list)
+    error: str = ""  # why it failed or was skipped
+    seconds: float = 0.0
+    info: dict = field(default_factory=dict)  # kind, method, device, fit seconds, loss terms
+
+    def record(self) -> dict:
+        """One line of ``--report``: ``error`` holds a failure's reason, ``reason`` a skip's."""
+        record = {
+            "status": self.status,
+            "input": self.input,
+            "output": self.output,
+            "written": self.written,
+            "error": self.error if self.status == "failed" else "",
+            "seconds": round(self.seconds, 3),
+            **self.info,
+        }
+        if self.status == "skipped":
+            record["reason"] = self.error
+        return record
+
+
+class Terminated(BaseException):
+    """Raised by the SIGTERM handler: unwinds like Ctrl-C, so temporary files are removed."""
+
+
+def one_line(text: str) -> str:
+    """Collapse whitespace (newlines included) so a message fits ``jeanscv: FILE: reason``."""
+    return " ".join(str(text).split())
+
+
+def failure_reason(exc: BaseException) -> str:
+    """The user-facing reason for an exception raised while processing a file."""
+    from jeanscv.errors import JeansError
+
+    if isinstance(exc, JeansError):
+        return one_line(exc) or "failed"
+    if isinstance(exc, MemoryError):
+        return "out of memory"
+    detail = one_line(exc)
+    return f"unexpected error ({type(exc).__name__}{': ' + detail if detail else ''})"
+
+
+def wanted_outputs(job: Job, overwrite: bool) -> dict[str, Path]:
+    """The outputs to write: all with ``overwrite``, else those that do not exist yet."""
+    return {k: p for k, p in job.outputs.items() if overwrite or not p.exists()}
+
+
+def _encode(path: Path, pixels, result):
+    """Bytes of the picture for ``path``: its extension picks the format; photos keep
+    their EXIF (orientation removed) and colour profile."""
+    from jeanscv.io.write import encode_image, format_for_path
+
+    from .extras import on_white
+
+    fmt = format_for_path(path)
+    if fmt == "JPEG":
+        pixels = on_white(pixels)  # JPEG has no alpha: show transparency as white, not as raw colour
+    meta = {}
+    source = result.source
+    if result.kind == "photo" and source is not None:
+        meta = {"exif": source.exif, "icc_profile": source.icc_profile}
+    return encode_image(pixels, fmt, quality=95, **meta)
+
+
+def _ensure_folder(folder: Path) -> None:
+    from jeanscv.errors import JeansError
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise JeansError(f"cannot create output folder {folder}: {(exc.strerror or str(exc)).lower()}") from None
+
+
+def picture(result, options: Options):
+    """The main output picture: the fit, captioned, optionally beside the original."""
+    from .extras import add_captions, side_by_side
+
+    image = add_captions(result.image, options.top, options.bottom)
+    if options.side_by_side:
+        if result.kind == "silhouette":
+            from jeanscv.composite import render_silhouette_figure
+
+            original = render_silhouette_figure(result.silhouette.mask, None)
+        else:
+            original = result.source.pixels
+        image = side_by_side(original, image)
+    return image
+
+
+def report_json(result, job: Job) -> str:
+    """The ``--json`` sidecar text: sorted keys, indent 2, newline at the end."""
+    report = result.report(job.display, str(job.outputs["image"]))
+    return json.dumps(report, sort_keys=True, indent=2) + "\n"
+
+
+def _run(job: Job, options: Options, outcome: Outcome) -> None:
+    from jeanscv import api
+    from jeanscv.io.write import atomic_write_bytes
+
+    from jeanscv.api import load_mask, silhouette_contours
+
+    from .extras import optimisation_gif, svg_document
+
+    targets = wanted_outputs(job, options.overwrite)
+    mask = load_mask(options.mask, options.max_pixels) if options.mask else None
+    result = api.apply_jeans(
+        job.path,
+        garment=options.garment,
+        preset=options.preset,
+        iterations=options.iterations,
+        seed=options.seed,
+        device=options.device,
+        starts=options.starts,
+        kind=options.kind,
+        silhouette_method=options.silhouette,
+        threshold=options.threshold,
+        rect=options.rect,
+        mask=mask,
+        style=options.style,
+        clip=options.clip,
+        max_pixels=options.max_pixels,
+        raw_full_size=options.raw_full_size,
+    )
+    fit = result.fit
+    outcome.info = {
+        "kind": result.kind,
+        "silhouette_method": result.silhouette.method,
+        "device": fit.device,
+        "fit_seconds": round(fit.seconds, 3),
+        "objective": float(fit.objective),
+        "terms": {k: float(v) for k, v in fit.terms.items()},
+        "paper_total": float(fit.paper_total),
+        "paper_terms": {k: float(v) for k, v in fit.paper_terms.items()},
+    }
+    # Everything is encoded before the first write, so a failure leaves no outputs.
+    data: dict[str, bytes] = {}
+    if "image" in targets:
+        data["image"] = _encode(targets["image"], picture(result, options), result)
+    if "json" in targets:
+        data["json"] = report_json(result, job).encode("utf-8")
+    if "svg" in targets:
+        vertices = result.silhouette.framing.to_image(fit.vertices)
+        size = tuple(int(v) for v in result.silhouette.framing.image_size)
+        text = svg_document(vertices, silhouette_contours(result.silhouette), size, f"jeanscv: {job.path.name}")
+        data["svg"] = text.encode("utf-8")
+    if "gif" in targets:
+        if getattr(fit, "trajectory", None) is None:
+            raise RuntimeError("this jeanscv library gives no fit trajectory for --gif")
+        data["gif"] = optimisation_gif(result, options.gif_frames)
+    for kind, payload in data.items():
+        path = targets[kind]
+        _ensure_folder(path.parent)
+        atomic_write_bytes(path, payload)
+        outcome.written.append(str(path))
+
+
+# Worker processes: whether a file is being processed, for the SIGTERM handler.
+_BUSY = False
+
+
+def process(job: Job, options: Options) -> Outcome:
+    """Process one job; never raises for a bad input (the outcome says ``failed``).
+
+    KeyboardInterrupt and :class:`Terminated` propagate, after the atomic writers
+    have removed their temporary files.
+    """
+    global _BUSY
+    began = time.perf_counter()
+    outcome = Outcome(job.index, job.display, "ok", output=str(job.outputs["image"]))
+    _BUSY = True
+    try:
+        _run(job, options, outcome)
+    except Exception as exc:  # noqa: BLE001 - every failure becomes one line for this file
+        outcome.status, outcome.error = "failed", failure_reason(exc)
+        outcome.output = ""
+    finally:
+        _BUSY = False
+    outcome.seconds = time.perf_counter() - began
+    return outcome
+
+
+def _worker_sigterm(signum, frame) -> None:
+    if _BUSY:
+        raise Terminated()
+    os._exit(128 + signum)  # idle: nothing to clean up, and no traceback to print
+
+
+def init_worker(threads: int) -> None:
+    """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on SIGTERM."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_sigterm)
+    import torch
+
+    torch.set_num_threads(max(1, threads))
+
+
+def process_in_worker(job: Job, options: Options) -> Outcome:
+    """:func:`process` for a worker process: a SIGTERM mid-file reports nothing and exits."""
+    try:
+        return process(job, options)
+    except Terminated:
+        os._exit(128 + signal.SIGTERM)

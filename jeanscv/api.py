@@ -1,0 +1,384 @@
+"""The public pipeline: decode -> silhouette and framing -> fit -> composite -> report.
+
+Everything takes and returns numpy arrays (and accepts torch tensors for ``S``); the
+CLI is a thin layer over :func:`apply_jeans`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import JeansError
+from .framing import Framing, frame_mask, identity_framing
+from .garments import JEANS, Garment, get_garment
+from .geometry import CANVAS_SIZE
+
+SVG_EXTENSIONS = frozenset({".svg", ".svgz"})
+KINDS = ("auto", "silhouette", "photo")
+
+
+@dataclass
+class Silhouette:
+    """An object's silhouette at image resolution and on the canvas.
+
+    ``mask``: ``(H, W)`` float32 alpha at image resolution; ``canvas``: the paper's
+    ``S``, ``(256, 256)`` float32; ``framing`` maps canvas pixels to image pixels.
+    """
+
+    mask: np.ndarray
+    canvas: np.ndarray
+    framing: Framing
+    method: str
+    contour: np.ndarray | None = None  # (K, 2) image pixels, outer boundary
+    details: dict = field(default_factory=dict)
+    mask_is_canvas: bool = False  # an SVG's mask is drawn on the canvas, not in image units
+
+    def to_mask(self, canvas_points: np.ndarray) -> np.ndarray:
+        """Canvas pixels ``(..., 2)`` to pixels of ``mask``."""
+        points = np.asarray(canvas_points, dtype=np.float64)
+        return points.copy() if self.mask_is_canvas else self.framing.to_image(points)
+
+
+def _two_tone_alpha(grey: np.ndarray) -> np.ndarray | None:
+    """Alpha of a flat dark-on-light (or light-on-dark) drawing, or None for a photo.
+
+    A silhouette drawing has two flat tones and anti-aliased edges between them:
+    nearly every pixel sits at one of the two extremes. The object is the tone that
+    touches the border least.
+    """
+    low, high = np.percentile(grey, [1, 99])
+    if high - low < 64:
+        return None
+    scaled = np.clip((grey.astype(np.float32) - low) / (high - low), 0.0, 1.0)
+    if np.mean((scaled > 0.1) & (scaled < 0.9)) > 0.03:
+        return None
+    border = np.concatenate([scaled[0], scaled[-1], scaled[:, 0], scaled[:, -1]])
+    return 1.0 - scaled if border.mean() >= 0.5 else scaled
+
+
+def silhouette_from_drawing(pixels: np.ndarray) -> np.ndarray | None:
+    """The alpha of a silhouette image (alpha channel, or one flat shape), else None.
+
+    Args:
+        pixels: ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` uint8.
+
+    Returns:
+        ``(H, W)`` float32 alpha in [0, 1], or None when the image looks like a photo.
+    """
+    image = np.asarray(pixels)
+    if image.ndim == 2:
+        return _two_tone_alpha(image)
+    rgb = image[..., :3].astype(np.float32)
+    if image.shape[-1] == 4 and image[..., 3].min() < 250:
+        alpha = image[..., 3].astype(np.float32) / 255.0
+        # A cut-out photo has texture under its alpha; a drawing is one flat colour.
+        opaque = alpha > 0.99
+        if opaque.any() and rgb[opaque].std(axis=0).max() < 4:
+            return alpha
+        return None
+    if np.abs(rgb - rgb.mean(axis=-1, keepdims=True)).max() > 24:
+        return None  # coloured: a photo
+    return _two_tone_alpha(rgb.mean(axis=-1))
+
+
+def silhouette_contours(silhouette: Silhouette) -> list[np.ndarray]:
+    """Boundary polylines ``[(K, 2)]`` of a silhouette in image pixels.
+
+    Photos carry their outer contour (``Silhouette.contour``); for drawings and SVGs
+    every boundary (holes included, for an even-odd fill) is traced as the 0.5
+    iso-line of the mask, between pixel centres.
+    """
+    if silhouette.contour is not None and len(silhouette.contour) >= 3:
+        return [np.asarray(silhouette.contour, dtype=np.float64)]
+    from skimage.measure import find_contours
+
+    # Padding closes the contours of shapes that touch the border.
+    padded = np.pad(np.asarray(silhouette.mask, dtype=np.float32), 1)
+    contours = []
+    for rc in find_contours(padded, 0.5):
+        if len(rc) < 3:
+            continue
+        xy = rc[:, ::-1] - 1.0 + 0.5  # (row, col) of padded centres -> (x, y) of pixel centres
+        contours.append(silhouette.framing.to_image(xy) if silhouette.mask_is_canvas else xy)
+    return contours
+
+
+def load_mask(path: str | os.PathLike, max_pixels: int = 100_000_000) -> np.ndarray:
+    """A ``(H, W)`` bool mask from an image file: its alpha when it has some, else grey >= 128."""
+    try:
+        loaded = load_image(path, max_pixels=max_pixels)
+    except JeansError as exc:
+        raise JeansError(f"cannot read mask {path}: {exc}") from None
+    pixels = loaded.pixels
+    if loaded.alpha_meaningful:
+        return pixels[..., 3] >= 128
+    return pixels[..., :3].mean(axis=-1) >= 128
+
+
+def silhouette_from_alpha(alpha: np.ndarray, method: str) -> Silhouette:
+    """Frame a soft alpha ``(H, W)``: a 256x256 one is the canvas, others are framed."""
+    alpha = np.clip(np.asarray(alpha, dtype=np.float32), 0.0, 1.0)
+    if alpha.sum() < 1.0:
+        raise JeansError("silhouette is empty")
+    if alpha.shape == (CANVAS_SIZE, CANVAS_SIZE):
+        return Silhouette(alpha, alpha, identity_framing(), method)
+    canvas, framing = frame_mask(alpha)
+    return Silhouette(alpha, canvas, framing, method)
+
+
+def read_svg(path: str | os.PathLike) -> Silhouette:
+    """An SVG silhouette: its 256 canvas is the viewBox, fitted with aspect kept."""
+    from .io.svg import read_svg_silhouette
+
+    if not Path(path).is_file():
+        raise JeansError("file not found" if not Path(path).exists() else "not a file")
+    svg = read_svg_silhouette(path)
+    framing = Framing(
+        (float(svg.canvas_to_image[0, 2]), float(svg.canvas_to_image[1, 2])),
+        float(svg.canvas_to_image[0, 0] * CANVAS_SIZE),
+        (int(round(svg.width)), int(round(svg.height))),
+    )
+    return Silhouette(svg.alpha, svg.alpha, framing, "svg", mask_is_canvas=True)
+
+
+def load_image(path: str | os.PathLike, max_pixels: int = 100_000_000, raw_full_size: bool = False):
+    """Decode a photo or RAW file: RGB(A) uint8, upright, with metadata (``LoadedImage``)."""
+    from .io.image import load_image as _load
+
+    return _load(path, max_pixels=max_pixels, raw_full_size=raw_full_size)
+
+
+def extract_silhouette(
+    image: np.ndarray,
+    method: str = "auto",
+    *,
+    threshold: float | None = None,
+    rect: tuple[int, int, int, int] | None = None,
+    mask: np.ndarray | None = None,
+) -> Silhouette:
+    """Segment the main object of a photo ``(H, W, 3|4)`` uint8 and frame it.
+
+    ``method``: ``auto``, ``alpha``, ``threshold``, ``grabcut`` (see the README);
+    ``mask``: a user-supplied ``(H, W)`` mask, used instead of segmentation.
+    """
+    from .silhouette.photo import segment
+
+    result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
+    alpha = result.mask.astype(np.float32)
+    canvas, framing = frame_mask(alpha)
+    return Silhouette(alpha, canvas, framing, result.method, result.contour, dict(result.details))
+
+
+def fit(
+    silhouette: Silhouette | np.ndarray,
+    garment: str | Garment = "jeans",
+    preset: str = "default",
+    iterations: int = 100,
+    seed: int = 0,
+    device: str = "cpu",
+    starts: int | None = None,
+):
+    """Fit a garment to a :class:`Silhouette` or directly to a 256x256 ``S`` (array or tensor).
+
+    Returns a :class:`jeanscv.fit.FitResult` (vertices in canvas pixels, per-term
+    losses, the loss history).
+    """
+    from .fit import fit as _fit
+
+    canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
+    garment = get_garment(garment) if isinstance(garment, str) else garment
+    return _fit(canvas, preset, garment, iterations=iterations, seed=seed, starts=starts, device=resolve_device(device))
+
+
+def resolve_device(device: str) -> str:
+    """``auto`` -> ``cuda`` when available else ``cpu``; asking for missing cuda is an error."""
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise JeansError("--device cuda was requested but CUDA is not available")
+    if device not in ("cpu",) and not device.startswith("cuda"):
+        raise JeansError(f"unknown device {device!r} (use auto, cpu or cuda)")
+    return device
+
+
+def composite(
+    image: np.ndarray,
+    fit_result,
+    silhouette: Silhouette,
+    style: str = "denim",
+    clip: bool = True,
+    seed: int = 0,
+) -> np.ndarray:
+    """Paint the fitted garment onto ``image`` (the photo the silhouette came from)."""
+    from .composite import composite_jeans
+
+    vertices = silhouette.to_mask(fit_result.vertices)
+    return composite_jeans(
+        image, vertices, fit_result.garment, silhouette.mask if clip else None, style=style, clip=clip, seed=seed
+    )
+
+
+def figure(silhouette: Silhouette, fit_result=None) -> np.ndarray:
+    """The paper's figure style at the mask's resolution: black shape, blue jeans, white ground.
+
+    Without a fit, the silhouette alone.
+    """
+    from .composite import render_silhouette_figure
+
+    if fit_result is None:
+        return render_silhouette_figure(silhouette.mask, None)
+    return render_silhouette_figure(silhouette.mask, silhouette.to_mask(fit_result.vertices), fit_result.garment)
+
+
+@dataclass
+class JeansResult:
+    """Everything :func:`apply_jeans` produced."""
+
+    image: np.ndarray  # the output picture, uint8
+    silhouette: Silhouette
+    fit: object  # FitResult
+    kind: str  # "silhouette" or "photo"
+    source: object | None = None  # LoadedImage for files that were decoded
+
+    def report(self, input_name: str = "", output_name: str = "") -> dict:
+        """The JSON-able report (the CLI's ``--json`` sidecar)."""
+        from .checks import rule_report
+
+        fit_result = self.fit
+        framing = self.silhouette.framing
+        rules = rule_report(fit_result.vertices, self.silhouette.canvas, fit_result.garment)
+        return {
+            "input": input_name,
+            "output": output_name,
+            "kind": self.kind,
+            "garment": fit_result.garment.name,
+            "preset": fit_result.preset.name,
+            "iterations": fit_result.iterations,
+            "seed": fit_result.seed,
+            "device": fit_result.device,
+            "canvas_size": CANVAS_SIZE,
+            "silhouette_method": self.silhouette.method,
+            "vertices_canvas": _rounded(fit_result.vertices),
+            "vertices_image": _rounded(framing.to_image(fit_result.vertices)),
+            "canvas_to_image": _rounded(framing.canvas_to_image),
+            "image_size": list(framing.image_size),
+            "paper_terms": _rounded_dict(fit_result.paper_terms),
+            "paper_total": _round(fit_result.paper_total),
+            "objective": _round(fit_result.objective),
+            "terms": _rounded_dict(fit_result.terms),
+            "weights": dict(fit_result.preset.weights),
+            "inter_pairs": fit_result.preset.inter_pairs,
+            "starts": fit_result.num_starts,
+            "finished_starts": fit_result.start_ids,
+            "start_index": fit_result.start_index,
+            "start_objectives": [_round(v) for v in fit_result.start_objectives],
+            "rules": {k: (_round(v) if isinstance(v, float) else v) for k, v in rules.to_json().items()},
+            "seconds": round(fit_result.seconds, 3),
+        }
+
+
+def _round(value: float) -> float:
+    return float(f"{float(value):.6g}")
+
+
+def _rounded(array: np.ndarray) -> list:
+    return np.vectorize(_round, otypes=[float])(np.asarray(array, dtype=np.float64)).tolist()
+
+
+def _rounded_dict(values: dict[str, float]) -> dict[str, float]:
+    return {k: _round(v) for k, v in values.items()}
+
+
+def prepare_input(
+    source: str | os.PathLike | np.ndarray,
+    kind: str = "auto",
+    silhouette_method: str = "auto",
+    threshold: float | None = None,
+    rect: tuple[int, int, int, int] | None = None,
+    mask: np.ndarray | None = None,
+    max_pixels: int = 100_000_000,
+    raw_full_size: bool = False,
+) -> tuple[Silhouette, str, np.ndarray | None, object | None]:
+    """Decode and segment an input: ``(silhouette, kind, pixels, loaded_image)``."""
+    if kind not in KINDS:
+        raise JeansError(f"unknown input kind {kind!r} (use {', '.join(KINDS)})")
+    loaded = None
+    if isinstance(source, (str, os.PathLike)):
+        if Path(source).suffix.lower() in SVG_EXTENSIONS:
+            return read_svg(source), "silhouette", None, None
+        loaded = load_image(source, max_pixels=max_pixels, raw_full_size=raw_full_size)
+        pixels = loaded.pixels
+    else:
+        pixels = np.asarray(source)
+        if pixels.dtype != np.uint8 or pixels.ndim not in (2, 3):
+            raise JeansError("image must be a uint8 array of shape (H, W), (H, W, 3) or (H, W, 4)")
+    if pixels.ndim == 2:
+        pixels = np.repeat(pixels[..., None], 3, axis=-1)
+    if kind != "photo" and mask is None:
+        alpha = silhouette_from_drawing(pixels)
+        if alpha is not None or kind == "silhouette":
+            if alpha is None:
+                raise JeansError("not a silhouette image (no alpha and not two-toned)")
+            return silhouette_from_alpha(alpha, "drawing"), "silhouette", pixels, loaded
+    silhouette = extract_silhouette(pixels, silhouette_method, threshold=threshold, rect=rect, mask=mask)
+    return silhouette, "photo", pixels, loaded
+
+
+def apply_jeans(
+    source: str | os.PathLike | np.ndarray,
+    *,
+    garment: str | Garment = "jeans",
+    preset: str = "default",
+    iterations: int = 100,
+    seed: int = 0,
+    device: str = "cpu",
+    starts: int | None = None,
+    kind: str = "auto",
+    silhouette_method: str = "auto",
+    threshold: float | None = None,
+    rect: tuple[int, int, int, int] | None = None,
+    mask: np.ndarray | None = None,
+    style: str = "denim",
+    clip: bool = True,
+    max_pixels: int = 100_000_000,
+    raw_full_size: bool = False,
+) -> JeansResult:
+    """Decode, segment, fit and composite in one call.
+
+    ``source``: a path (photo, RAW, silhouette PNG or SVG) or a uint8 image array.
+    Silhouette drawings give the paper's figure (black shape, blue jeans on white);
+    photos get denim painted on at full resolution.
+    """
+    silhouette, resolved_kind, pixels, loaded = prepare_input(
+        source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_full_size
+    )
+    fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts)
+    if resolved_kind == "silhouette":
+        image = figure(silhouette, fit_result)
+    else:
+        image = composite(pixels, fit_result, silhouette, style=style, clip=clip, seed=seed)
+    return JeansResult(image, silhouette, fit_result, resolved_kind, loaded)
+
+
+__all__ = [
+    "JEANS",
+    "JeansResult",
+    "Silhouette",
+    "apply_jeans",
+    "composite",
+    "extract_silhouette",
+    "figure",
+    "fit",
+    "load_image",
+    "load_mask",
+    "silhouette_contours",
+    "prepare_input",
+    "read_svg",
+    "resolve_device",
+]

@@ -1,0 +1,71 @@
+"""Shared test set-up: the CLI package importable from a source checkout, and CLI fixtures.
+
+After ``pip install -e .`` the CLI is the package ``jeanscv_cli``; in a plain
+checkout ``jeanscv/__main__.py`` loads the ``cli/`` folder under that name.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared" / "silhouettes"
+
+if importlib.util.find_spec("jeanscv") is None:
+    sys.path.insert(0, str(ROOT))
+if importlib.util.find_spec("jeanscv_cli") is None:
+    import jeanscv.__main__  # noqa: F401  (registers jeanscv_cli from ./cli)
+
+# A person-like polygon in a 256x256 viewBox: the SVG used when shared/ is absent.
+_PERSON_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="256" height="256" viewBox="0 0 256 256">
+<path d="M113 20 L143 20 L143 50 L160 60 L158 130 L150 130 L152 232 L134 232 L128 140 L122 232
+L104 232 L106 130 L98 130 L96 60 L113 50 Z" fill="#000"/></svg>
+"""
+
+
+@pytest.fixture
+def run_cli():
+    """``run_cli(*args)`` -> click ``Result`` of ``jeanscv ARGS`` run in-process (stderr separate)."""
+    from click.testing import CliRunner
+    from jeanscv_cli.main import cli
+
+    def run(*args):
+        return CliRunner().invoke(cli, [str(a) for a in args], prog_name="jeanscv")
+
+    return run
+
+
+def write_silhouette_png(path: Path, name: str = "person") -> Path:
+    """A 256x256 8-bit grey silhouette PNG (255 inside): a paper silhouette, else a synthetic one."""
+    from PIL import Image
+
+    if (SHARED / f"{name}.png").is_file():
+        shutil.copyfile(SHARED / f"{name}.png", path)
+    else:
+        from jeanscv.synthetic import ZOO, silhouette_zoo
+
+        key = name if name in ZOO else "person"
+        alpha = silhouette_zoo([key])[key]
+        Image.fromarray(np.round(alpha * 255).astype(np.uint8)).save(path)
+    return path
+
+
+def write_silhouette_svg(path: Path) -> Path:
+    """An SVG silhouette in a 256x256 viewBox: the paper's dog, else a person polygon."""
+    if (SHARED / "dog.svg").is_file():
+        shutil.copyfile(SHARED / "dog.svg", path)
+    else:
+        path.write_text(_PERSON_SVG)
+    return path
+
+
+def blue_pixels(image: np.ndarray) -> int:
+    """Pixels in the paper's jeans blue (0, 0, 255), allowing for anti-aliasing and JPEG."""
+    rgb = np.asarray(image)[..., :3].astype(int)
+    return int(np.sum((rgb[..., 2] > 200) & (rgb[..., 0] < 60) & (rgb[..., 1] < 60)))

@@ -1,0 +1,175 @@
+"""The ``jeanscv`` command on folders: discovery, mirrored outputs, resume, reports,
+worker processes and interruption."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROOT, write_silhouette_png, write_silhouette_svg
+from PIL import Image
+
+FAST = ("--iterations", "3", "--starts", "1")
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return env
+
+
+def _tree(root: Path, corrupt: bool = True) -> None:
+    """root/a.png, root/sub/b.png, root/sub/deeper/c.svg, a text file, a jeanscv output,
+    a hidden file and (optionally) a corrupt JPEG in root/sub."""
+    (root / "sub" / "deeper").mkdir(parents=True)
+    write_silhouette_png(root / "a.png", "person")
+    write_silhouette_png(root / "sub" / "b.png", "dog")
+    write_silhouette_svg(root / "sub" / "deeper" / "c.svg")
+    (root / "notes.txt").write_text("not an image\n")
+    write_silhouette_png(root / "sub" / "old.jeans.png", "person")  # a previous output: never an input
+    (root / ".hidden.png").write_bytes(b"junk")
+    if corrupt:
+        noise = np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8)
+        Image.fromarray(noise).save(root / "sub" / "full.jpg")
+        (root / "sub" / "corrupt.jpg").write_bytes((root / "sub" / "full.jpg").read_bytes()[:300])
+        (root / "sub" / "full.jpg").unlink()
+
+
+def _files(folder: Path) -> list[str]:
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+
+
+def test_folder_tree_is_mirrored_and_errors_listed(tmp_path, run_cli, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _tree(tmp_path / "in")
+    result = run_cli("in", "-r", "-o", "out", *FAST, "--json", "--report", "run.jsonl")
+    assert result.exit_code == 1
+    assert "Traceback" not in result.stderr
+    assert _files(tmp_path / "out") == [
+        "a.jeans.json", "a.jeans.png", "sub/b.jeans.json", "sub/b.jeans.png",
+        "sub/deeper/c.jeans.json", "sub/deeper/c.jeans.png",
+    ]
+    for name in ("a", "sub/b", "sub/deeper/c"):
+        with Image.open(tmp_path / "out" / f"{name}.jeans.png") as im:
+            assert im.size == (256, 256)
+        report = json.loads((tmp_path / "out" / f"{name}.jeans.json").read_text())
+        assert report["output"] == f"out/{name}.jeans.png"
+    lines = result.stderr.splitlines()
+    assert lines[0].endswith(": 4 inputs, device cpu, preset default, 3 iterations")
+    assert [line for line in lines if line.startswith("jeanscv: ")] == [
+        "jeanscv: in/sub/corrupt.jpg: truncated or corrupt image"
+    ]
+    # Plain progress lines (not a terminal), in input order for a serial run.
+    progress = [line for line in lines if line.startswith("[")]
+    assert [line.split(" (")[0] for line in progress] == [
+        "[1/4] in/a.png -> out/a.jeans.png",
+        "[2/4] in/sub/b.png -> out/sub/b.jeans.png",
+        "[4/4] in/sub/deeper/c.svg -> out/sub/deeper/c.jeans.png",
+    ]
+    assert lines[-1].startswith("3 ok, 1 failed, 1 skipped in ")
+    records = [json.loads(line) for line in (tmp_path / "run.jsonl").read_text().splitlines()]
+    by_input = {r["input"]: r for r in records}
+    assert {k: r["status"] for k, r in by_input.items()} == {
+        "in/notes.txt": "skipped", "in/a.png": "ok", "in/sub/b.png": "ok",
+        "in/sub/corrupt.jpg": "failed", "in/sub/deeper/c.svg": "ok",
+    }
+    assert by_input["in/sub/corrupt.jpg"]["error"] == "truncated or corrupt image"
+    ok = by_input["in/a.png"]
+    assert ok["output"] == "out/a.jeans.png" and ok["kind"] == "silhouette" and ok["fit_seconds"] > 0
+    assert ok["written"] == ["out/a.jeans.png", "out/a.jeans.json"]
+
+
+def test_resume_skips_finished_outputs_and_overwrite_redoes_them(tmp_path, run_cli, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _tree(tmp_path / "in", corrupt=False)
+    assert run_cli("in", "-r", *FAST, "-q").exit_code == 0
+    outputs = ["in/a.jeans.png", "in/sub/b.jeans.png", "in/sub/deeper/c.jeans.png"]
+    assert all((tmp_path / p).is_file() for p in outputs)
+    old = 1_000_000_000
+    for p in outputs:
+        os.utime(tmp_path / p, ns=(old, old))
+    os.remove(tmp_path / outputs[1])  # as if interrupted before b was written
+
+    again = run_cli("in", "-r", *FAST)
+    assert again.exit_code == 0
+    assert again.stderr.splitlines()[-1].startswith("1 ok, 0 failed, 3 skipped in ")  # a and c, notes.txt
+    assert os.stat(tmp_path / outputs[0]).st_mtime_ns == old
+    assert os.stat(tmp_path / outputs[2]).st_mtime_ns == old
+    assert (tmp_path / outputs[1]).is_file()
+
+    redo = run_cli("in", "-r", *FAST, "--overwrite", "-q")
+    assert redo.exit_code == 0
+    assert all(os.stat(tmp_path / p).st_mtime_ns > old for p in outputs)
+    # The old output of a previous run stays untouched and is not an input.
+    assert not (tmp_path / "in" / "sub" / "old.jeans.jeans.png").exists()
+
+
+def test_folder_without_recursion_globs_and_name_clashes(tmp_path, run_cli, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _tree(tmp_path / "in", corrupt=False)
+    write_silhouette_svg(tmp_path / "in" / "a.svg")  # clashes with a.png: a.svg.jeans.png
+    result = run_cli("in", "in/sub/*.png", *FAST, "-o", "out", "-q")
+    assert result.exit_code == 0, result.stderr
+    assert _files(tmp_path / "out") == ["a.jeans.png", "a.svg.jeans.png", "b.jeans.png"]
+
+
+def test_python_m_jeanscv_with_worker_processes(tmp_path):
+    _tree(tmp_path / "in", corrupt=True)
+    done = subprocess.run(
+        [sys.executable, "-m", "jeanscv", "in", "-r", "-j", "2", "-o", "out", *FAST],
+        cwd=tmp_path, capture_output=True, text=True, env=_env(), timeout=240,
+    )
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    assert _files(tmp_path / "out") == ["a.jeans.png", "sub/b.jeans.png", "sub/deeper/c.jeans.png"]
+    lines = done.stderr.splitlines()
+    assert "jeanscv: in/sub/corrupt.jpg: truncated or corrupt image" in lines
+    assert sorted(line.split(" (")[0].split("] ")[1] for line in lines if line.startswith("[")) == [
+        "in/a.png -> out/a.jeans.png", "in/sub/b.png -> out/sub/b.jeans.png",
+        "in/sub/deeper/c.svg -> out/sub/deeper/c.jeans.png",
+    ]
+    assert lines[-1].startswith("3 ok, 1 failed, 1 skipped in ")
+
+
+@pytest.mark.parametrize(("sig", "code", "jobs"), [(signal.SIGINT, 130, "1"), (signal.SIGTERM, 143, "2")])
+def test_interrupt_keeps_finished_outputs_and_no_partial_files(tmp_path, sig, code, jobs):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for i in range(12):
+        write_silhouette_png(folder / f"s{i:02d}.png", "person")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "jeanscv", str(folder), "-j", jobs, "--iterations", "60", "--starts", "2"],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=_env(),
+        start_new_session=jobs == "1",  # a parent with workers signals only itself, like `kill PID`
+    )
+    lines = []
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline:
+        line = process.stderr.readline()
+        lines.append(line.rstrip("\n"))
+        if line.startswith("[1/12]") or not line:
+            break
+    if jobs == "1":
+        os.killpg(process.pid, sig)  # Ctrl-C reaches the whole process group
+    else:
+        process.send_signal(sig)
+    _, rest = process.communicate(timeout=120)
+    lines += rest.splitlines()
+    assert process.returncode == code, lines
+    assert "Traceback" not in rest
+    assert "jeanscv: interrupted: finished outputs are kept; run again to resume" in lines
+    assert lines[-1].split(" in ")[0].endswith("skipped")
+    outputs = sorted(folder.glob("*.jeans.png"))
+    assert 1 <= len(outputs) < 12
+    assert [p.name for p in folder.iterdir() if p.name.startswith(".")] == []  # no temporary files
+    for path in outputs:
+        with Image.open(path) as im:
+            assert im.size == (256, 256)
+            assert np.asarray(im).shape == (256, 256, 3)  # decodes completely
