@@ -16,8 +16,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from jeanscv.checks import rule_report
-from jeanscv.composite import render_silhouette_figure
-from jeanscv.fit import fit
+from jeanscv.compositing import render_silhouette_figure
+from jeanscv.fitter import fit
 from jeanscv.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"

@@ -10,7 +10,7 @@ import argparse
 from collections import Counter
 
 from jeanscv.checks import rule_report
-from jeanscv.fit import fit
+from jeanscv.fitter import fit
 from jeanscv.synthetic import random_creature
 
 

@@ -130,7 +130,7 @@ def picture(result, options: Options):
     image = add_captions(result.image, options.top, options.bottom)
     if options.side_by_side:
         if result.kind == "silhouette":
-            from jeanscv.composite import render_silhouette_figure
+            from jeanscv.compositing import render_silhouette_figure
 
             original = render_silhouette_figure(result.silhouette.mask, None)
         else:

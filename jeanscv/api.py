@@ -184,10 +184,10 @@ def fit(
 ):
     """Fit a garment to a :class:`Silhouette` or directly to a 256x256 ``S`` (array or tensor).
 
-    Returns a :class:`jeanscv.fit.FitResult` (vertices in canvas pixels, per-term
+    Returns a :class:`jeanscv.fitter.FitResult` (vertices in canvas pixels, per-term
     losses, the loss history).
     """
-    from .fit import fit as _fit
+    from .fitter import fit as _fit
 
     canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
     garment = get_garment(garment) if isinstance(garment, str) else garment
@@ -216,7 +216,7 @@ def composite(
     seed: int = 0,
 ) -> np.ndarray:
     """Paint the fitted garment onto ``image`` (the photo the silhouette came from)."""
-    from .composite import composite_jeans
+    from .compositing import composite_jeans
 
     vertices = silhouette.to_mask(fit_result.vertices)
     return composite_jeans(
@@ -229,7 +229,7 @@ def figure(silhouette: Silhouette, fit_result=None) -> np.ndarray:
 
     Without a fit, the silhouette alone.
     """
-    from .composite import render_silhouette_figure
+    from .compositing import render_silhouette_figure
 
     if fit_result is None:
         return render_silhouette_figure(silhouette.mask, None)

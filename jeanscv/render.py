@@ -29,7 +29,7 @@ Shapes: vertices are ``(..., N, 2)`` in pixels of the canvas (x right, y down, p
 ``(c, r)`` covers ``[c, c+1) x [r, r+1)``); maps are ``(..., H, W)``.
 
 A stroke ``R(e)`` is the set of points within ``half_width`` of the segment (a
-capsule). It is rasterized as a polygon whose round caps are 16-segment fans with
+capsule). It is rasterized as a polygon whose round caps are 8-segment fans with
 the mid-cap radius enlarged so the polygon's area equals the true capsule area.
 """
 

@@ -1,4 +1,4 @@
-"""Tests for jeanscv.composite: painting jeans on photos and the paper's figures.
+"""Tests for jeanscv.compositing: painting jeans on photos and the paper's figures.
 
 The synthetic photo is a grey ellipse (a left-to-right gradient) on a plain light
 background, with its exact mask; the jeans are the template scaled onto it so the
@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from jeanscv.composite import (
+from jeanscv.compositing import (
     FLAT_BLUE,
     composite_jeans,
     polygon_coverage_patch,

@@ -11,7 +11,7 @@ from PIL import Image
 
 from jeanscv.checks import rule_report, self_intersects
 from jeanscv.errors import JeansError
-from jeanscv.fit import fit, initial_placements, is_upside_down
+from jeanscv.fitter import fit, initial_placements, is_upside_down
 from jeanscv.garments import JEANS
 from jeanscv.render import polygon_coverage
 from jeanscv.synthetic import ZOO, silhouette_zoo
@@ -152,7 +152,7 @@ def test_rule_checks_on_hand_made_cases():
 
 
 def test_batch_adam_matches_torch_adam():
-    from jeanscv.fit import BatchAdam
+    from jeanscv.fitter import BatchAdam
 
     start = torch.tensor([[1.0, -2.0], [0.5, 3.0]], dtype=torch.float64)
     ours = BatchAdam(start.clone(), lr=1e-2)
