@@ -31,15 +31,14 @@ import numpy as np
 from .errors import JeansError
 from .geometry import CANVAS_SIZE
 
-#: Detail sets the compositor knows (``Garment.extra["style"]``): ``jeans`` has a fly,
-#: pockets and leg hems; ``shorts`` the same with short legs; ``skirt`` and ``plain``
-#: have no fly or crotch whiskers.
+#: Detail sets a garment asks the compositor for (``Garment.extra["style"]``): ``jeans``
+#: and ``shorts`` have a fly, pockets, belt loops, leg hems and crotch whiskers;
+#: ``skirt`` the same without whiskers (it has no crotch); ``plain`` only seams and hems.
 DRAW_STYLES = ("jeans", "shorts", "skirt", "plain")
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _TOML_KEYS = {"name", "description", "vertices", "open_edges", "waist", "draw"}
 _DRAW_KEYS = {"style", "colour", "color"}
-# Vertices must lie on the canvas; a coordinate-free sanity bound is then implied.
 _MIN_AREA = 1.0  # square canvas pixels
 _MIN_EDGE = 1e-6  # canvas pixels
 
@@ -223,7 +222,7 @@ def _vertex_array(template: object) -> np.ndarray:
         raise JeansError("vertices must be a list of [x, y] pairs") from None
     if any(len(p) != 2 for p in rows):
         raise JeansError("vertices must be a list of [x, y] pairs")
-    if any(isinstance(c, (bool, str, bytes)) or not isinstance(c, (int, float, np.integer, np.floating)) for p in rows for c in p):
+    if not all(_is_number(c) for p in rows for c in p):
         raise JeansError("vertex coordinates must be numbers")
     vertices = np.array(rows, dtype=np.float64).reshape(-1, 2)
     if len(vertices) < 3:
@@ -233,6 +232,11 @@ def _vertex_array(template: object) -> np.ndarray:
     if vertices.min() < 0 or vertices.max() > CANVAS_SIZE:
         raise JeansError(f"vertices must lie on the {CANVAS_SIZE}x{CANVAS_SIZE} canvas (0..{CANVAS_SIZE} px)")
     return vertices
+
+
+def _is_number(value: object) -> bool:
+    """An int or float (numpy's too), but not a bool: TOML ``true`` is no coordinate."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
 def _index_list(values: object, n: int, what: str) -> list[int]:
@@ -267,9 +271,9 @@ def _segments_touch(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarr
         return True
 
     def on_segment(a: np.ndarray, b: np.ndarray, p: np.ndarray, d: float) -> bool:
-        return abs(d) <= tol and min(a[0], b[0]) - 1e-9 <= p[0] <= max(a[0], b[0]) + 1e-9 and min(
-            a[1], b[1]
-        ) - 1e-9 <= p[1] <= max(a[1], b[1]) + 1e-9
+        """``p``, collinear with ``ab`` when ``d`` ~ 0, within its bounding box."""
+        low, high = np.minimum(a, b) - 1e-9, np.maximum(a, b) + 1e-9
+        return abs(d) <= tol and bool(np.all((low <= p) & (p <= high)))
 
     return (
         on_segment(q1, q2, p1, d1)
