@@ -17,8 +17,6 @@ OUTPUT_FORMATS = ("png", "jpg", "webp")
 
 # Output extension kept for photos whose format the writers can encode; everything
 # else becomes PNG (lossless, keeps alpha), and RAW becomes JPEG like a camera would.
-_KEEP_EXTENSION = {".jpg": ".jpg", ".jpeg": ".jpeg", ".jpe": ".jpg", ".jfif": ".jpg",
-                   ".png": ".png", ".webp": ".webp", ".tif": ".tif", ".tiff": ".tiff"}
 _GLOB_CHARS = frozenset("*?[")
 
 
@@ -66,24 +64,6 @@ def candidate_extensions() -> frozenset[str]:
     from jeanscv.io.image import SUPPORTED_EXTENSIONS
 
     return SUPPORTED_EXTENSIONS | SVG_EXTENSIONS
-
-
-def image_extension(input_path: Path, fmt: str | None) -> str:
-    """The extension (with dot) of the picture written for ``input_path``.
-
-    Decided from the name alone, so that a resumed run finds the outputs of the
-    previous one without decoding anything: SVG -> ``.png`` (the paper figure),
-    RAW -> ``.jpg``, JPEG/PNG/WebP/TIFF keep theirs, other formats -> ``.png``;
-    ``fmt`` (``png``/``jpg``/``webp``) overrides all.
-    """
-    if fmt:
-        return "." + fmt
-    from jeanscv.io.image import RAW_EXTENSIONS
-
-    suffix = input_path.suffix.lower()
-    if suffix in RAW_EXTENSIONS:
-        return ".jpg"
-    return _KEEP_EXTENSION.get(suffix, ".png")
 
 
 def _walk(folder: Path, recursive: bool) -> list[Path]:
@@ -188,8 +168,10 @@ def collect(
 
 def _outputs(base: Path, path: Path, fmt: str | None, extras: tuple[str, ...]) -> dict[str, Path]:
     """Output paths ``base.jeans.EXT`` for the picture and each sidecar in ``extras``."""
+    from jeanscv.io.write import output_extension
+
     stem = base.name + ".jeans"
-    outputs = {"image": base.with_name(stem + image_extension(path, fmt))}
+    outputs = {"image": base.with_name(stem + output_extension(path, fmt))}
     for extra in extras:
         outputs[extra] = base.with_name(f"{stem}.{extra}")
     return outputs

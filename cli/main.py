@@ -56,12 +56,21 @@ def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> No
     ctx.exit(0)
 
 
+def _check_silhouette(ctx: click.Context, param: click.Parameter, value: str) -> str:
+    from jeanscv.plugins import available_silhouette_methods
+
+    known = available_silhouette_methods()
+    if value not in known:
+        raise click.BadParameter(f"{value!r} is not one of {', '.join(sorted(known))}")
+    return value
+
+
 def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> None:
     if not value or ctx.resilient_parsing:
         return
-    from jeanscv.garments import GARMENTS
+    from jeanscv.plugins import available_garments
 
-    for name, garment in GARMENTS.items():
+    for name, garment in available_garments().items():
         click.echo(f"{name}: {garment.description}")
     ctx.exit(0)
 
@@ -93,8 +102,8 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option("--starts", type=click.IntRange(1), help="Initial placements tried (default: the preset's).")
 @click.option("--kind", type=click.Choice(["auto", "silhouette", "photo"]), default="auto", show_default=True,
               help="Treat inputs as silhouette drawings or photos.")
-@click.option("--silhouette", "silhouette_method", type=click.Choice(["auto", "alpha", "threshold", "grabcut"]),
-              default="auto", show_default=True, help="How to cut the object out of a photo.")
+@click.option("--silhouette", "silhouette_method", default="auto", show_default=True, callback=_check_silhouette,
+              help="How to cut the object out of a photo: auto, alpha, threshold, grabcut, or a plugin's name.")
 @click.option("--threshold", type=click.FloatRange(0, 255), help="Grey level for --silhouette threshold.")
 @click.option("--mask", type=click.Path(exists=True, dir_okay=False), help="Mask image for a single input.")
 @click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")

@@ -30,6 +30,11 @@ _LAZY = {
     "jalgorithm_terms": "jeanscv.loss",
     "PRESETS": "jeanscv.presets",
     "GARMENTS": "jeanscv.garments",
+    "get_garment": "jeanscv.garments",
+    "load_garment": "jeanscv.garments",
+    "available_garments": "jeanscv.plugins",
+    "run_on_dask": "jeanscv.distributed",
+    "load_mask": "jeanscv.api",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -165,9 +165,14 @@ def extract_silhouette(
     ``method``: ``auto``, ``alpha``, ``threshold``, ``grabcut`` (see the README);
     ``mask``: a user-supplied ``(H, W)`` mask, used instead of segmentation.
     """
+    from .plugins import is_plugin_silhouette_method, segment_with
     from .silhouette.photo import segment
 
-    result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
+    if mask is None and is_plugin_silhouette_method(method):
+        # A plugin extractor takes the image alone: threshold and rect are built-in options.
+        result = segment_with(method, image)
+    else:
+        result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
     alpha = result.mask.astype(np.float32)
     canvas, framing = frame_mask(alpha)
     return Silhouette(alpha, canvas, framing, result.method, result.contour, dict(result.details))
@@ -175,7 +180,7 @@ def extract_silhouette(
 
 def fit(
     silhouette: Silhouette | np.ndarray,
-    garment: str | Garment = "jeans",
+    garment: str | os.PathLike | Garment = "jeans",
     preset: str = "default",
     iterations: int = 100,
     seed: int = 0,
@@ -190,8 +195,7 @@ def fit(
     from .fitter import fit as _fit
 
     canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
-    garment = get_garment(garment) if isinstance(garment, str) else garment
-    return _fit(canvas, preset, garment, iterations=iterations, seed=seed, starts=starts, device=resolve_device(device))
+    return _fit(canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts, device=resolve_device(device))
 
 
 def resolve_device(device: str) -> str:

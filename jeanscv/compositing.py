@@ -399,9 +399,12 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
         wear.lines([line], 1.5 * seam_w, 0.6)
         stitches(line, (0.6 * hem,))
 
+    # Trouser details (pockets, fly, whiskers) only for trousers; a plain garment gets
+    # no belt loops either.
+    trousers = garment.style in ("jeans", "shorts")
     # Front pockets: scooped openings from the waistband to the side seams, stitched on
     # the front-panel side, a rivet at the outer end of each.
-    for corner, low, other, side in ((v[a], a_low, b_low, side_a), (v[b], b_low, a_low, side_b)):
+    for corner, low, other, side in ((v[a], a_low, b_low, side_a), (v[b], b_low, a_low, side_b)) if trousers else ():
         start = low + (other - low) * 0.2
         end = corner + _towards(corner, side) * 0.27 * unit
         control = corner + 0.95 * (start - corner) + 0.9 * (end - corner)
@@ -415,7 +418,7 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
 
     # Fly: centre seam down to the crotch and the J-shaped double stitch beside it, then
     # whiskers, pale creases fanning out from the crotch across the thighs.
-    to_crotch = _ray_hit(layout, centre_low, layout.down)
+    to_crotch = _ray_hit(layout, centre_low, layout.down) if trousers else np.inf
     if np.isfinite(to_crotch) and to_crotch > 0.05 * unit:
         crotch = centre_low + layout.down * to_crotch
         grooves.lines([np.array([centre_low, crotch])], 0.7 * seam_w, 0.55)
@@ -444,7 +447,7 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
     # drop shadow on the side away from the light (down-right) and a sharp outline.
     loop_w, loop_over = 0.04 * unit, 0.03 * unit
     loops = []
-    for f in (0.1, 0.3, 0.7, 0.9):
+    for f in (0.1, 0.3, 0.7, 0.9) if garment.style != "plain" else ():
         top_pt = v[a] + (v[b] - v[a]) * f
         low_pt = a_low + (b_low - a_low) * f + layout.down * loop_over
         half = layout.across * 0.5 * loop_w
@@ -702,7 +705,7 @@ def composite_jeans(
         return out
 
     if style == "flat":
-        jeans = np.broadcast_to(np.array(FLAT_BLUE, np.float32), (*alpha.shape, 3))
+        jeans = np.broadcast_to(np.array(garment.extra.get("colour", FLAT_BLUE), np.float32), (*alpha.shape, 3))
     else:
         layout = _layout(local, garment)
         jeans = _render_denim(image, box, layout, coverage, alpha, garment, seed)
@@ -747,5 +750,6 @@ def render_silhouette_figure(
             x0, y0, x1, y1 = box
             cover = polygon_coverage_patch(vertices - np.array([x0, y0], np.float64), y1 - y0, x1 - x0)
             patch = figure[y0:y1, x0:x1]
-            patch += cover[..., None] * (np.array(FLAT_BLUE, np.float32) - patch)
+            colour = np.array(garment.extra.get("colour", FLAT_BLUE), np.float32)
+            patch += cover[..., None] * (colour - patch)
     return np.clip(np.rint(figure), 0, 255).astype(np.uint8)

@@ -22,10 +22,6 @@ from .errors import JeansError
 
 #: Extensions that keep their format in the output; everything else gets ``.png``,
 #: except RAW files, whose developed photo is written as ``.jpg`` (the CLI's rule).
-_KEEP_EXTENSION = {
-    ".jpg": ".jpg", ".jpeg": ".jpeg", ".jpe": ".jpg", ".jfif": ".jpg",
-    ".png": ".png", ".webp": ".webp", ".tif": ".tif", ".tiff": ".tiff",
-}
 
 
 def _dask_distributed():
@@ -36,17 +32,6 @@ def _dask_distributed():
     return distributed
 
 
-def output_extension(path: str | os.PathLike) -> str:
-    """The picture's extension for an input, from its name alone (as the CLI names it):
-    JPEG/PNG/WebP/TIFF keep theirs, RAW -> ``.jpg``, SVG and anything else -> ``.png``."""
-    from .io.image import RAW_EXTENSIONS
-
-    suffix = Path(path).suffix.lower()
-    if suffix in RAW_EXTENSIONS:
-        return ".jpg"
-    return _KEEP_EXTENSION.get(suffix, ".png")
-
-
 def output_paths(paths: Iterable[str | os.PathLike], output_dir: str | os.PathLike) -> list[tuple[Path, Path, Path]]:
     """``(input, picture, report)`` for each distinct input: ``<stem>.jeans.<ext>`` and
     ``<stem>.jeans.json`` in ``output_dir``.
@@ -55,6 +40,8 @@ def output_paths(paths: Iterable[str | os.PathLike], output_dir: str | os.PathLi
     (``dog.png`` and ``dog.svg``), the later keeps its extension in the name
     (``dog.svg.jeans.png``), as the CLI does.
     """
+    from .io.write import output_extension
+
     folder = Path(output_dir)
     seen: set[str] = set()
     claimed: set[str] = set()
@@ -212,4 +199,4 @@ def run_on_dask(
     return records
 
 
-__all__ = ["output_extension", "output_paths", "process_one", "run_on_dask"]
+__all__ = ["output_paths", "process_one", "run_on_dask"]

@@ -16,7 +16,8 @@ import pytest
 from PIL import Image
 
 from jeanscv.api import apply_jeans
-from jeanscv.distributed import output_extension, output_paths, run_on_dask
+from jeanscv.distributed import output_paths, run_on_dask
+from jeanscv.io.write import output_extension
 from jeanscv.errors import JeansError
 from jeanscv.io.write import encode_image
 from jeanscv.synthetic import silhouette_zoo

@@ -240,3 +240,30 @@ def test_pip_installs_the_example_with_the_same_entry_points(tmp_path):
     parse = lambda text: sorted(line.replace(" ", "") for line in text.splitlines() if line.strip())  # noqa: E731
     assert parse((installed / "entry_points.txt").read_text()) == parse((ours / "entry_points.txt").read_text())
     assert (target / PACKAGE / "__init__.py").read_bytes() == (EXAMPLE / PACKAGE / "__init__.py").read_bytes()
+
+
+def test_the_cli_offers_and_uses_plugin_garments_and_extractors(site, tmp_path):
+    """The installed example plugin from the command line, in a fresh process."""
+    from PIL import Image
+
+    photo = tmp_path / "square.png"
+    image = np.full((160, 160, 3), 230, np.uint8)
+    image[30:140, 50:110] = 20
+    Image.fromarray(image).save(photo)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT), str(ROOT / "tests")])}
+
+    def jeanscv(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "jeanscv", *args], env=env, capture_output=True, text=True, timeout=240
+        )
+
+    listed = jeanscv("--list-garments")
+    assert listed.returncode == 0, listed.stderr
+    assert "cape:" in listed.stdout
+    out = tmp_path / "out"
+    run = jeanscv(str(photo), "-o", str(out), "--kind", "photo", "--garment", "cape",
+                  "--silhouette", "everything_dark", "--iterations", "5", "--json")
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "square.jeans.json").read_text())
+    assert report["garment"] == "cape" and report["silhouette_method"] == "everything_dark"
+    assert len(report["vertices_canvas"]) == 6

@@ -159,3 +159,29 @@ def write_image(
     """
     data = encode_image(pixels, fmt or format_for_path(path), quality=quality, **kw)
     atomic_write_bytes(path, data)
+
+
+#: Picture formats an output keeps from its input; everything else becomes PNG.
+_KEEP_EXTENSION = {
+    ".jpg": ".jpg", ".jpeg": ".jpeg", ".jpe": ".jpg", ".jfif": ".jpg",
+    ".png": ".png", ".webp": ".webp", ".tif": ".tif", ".tiff": ".tiff",
+}
+
+
+def output_extension(input_path: str | os.PathLike, fmt: str | None = None) -> str:
+    """The extension (with dot) of the picture written for ``input_path``.
+
+    Decided from the name alone, so that a resumed run finds the outputs of the
+    previous one without decoding anything: SVG -> ``.png`` (the paper figure),
+    RAW -> ``.jpg``, JPEG/PNG/WebP/TIFF keep theirs, other formats -> ``.png``;
+    ``fmt`` (``png``/``jpg``/``webp``) overrides all.
+    """
+    if fmt:
+        return "." + fmt.lower().lstrip(".")
+    from .image import RAW_EXTENSIONS
+
+    suffix = Path(input_path).suffix.lower()
+    if suffix in RAW_EXTENSIONS:
+        return ".jpg"
+    return _KEEP_EXTENSION.get(suffix, ".png")
+
