@@ -36,13 +36,23 @@ DEFAULT_PLACEMENTS = (
 )
 
 
-def is_upside_down(vertices: np.ndarray, garment: Garment) -> bool:
-    """True when the garment hangs upwards: its body lies above its waistband."""
+def tilt_degrees(vertices: np.ndarray, garment: Garment) -> float:
+    """Angle between the garment's hanging direction (waistband to the rest) and
+    straight down: 0 upright, 90 lying on its side, 180 upside down."""
     v = np.asarray(vertices, dtype=np.float64)
     waist = v[list(garment.waist)].mean(axis=0)
-    rest = np.delete(v, list(garment.waist), axis=0).mean(axis=0)
-    down = rest - waist
-    return bool(down[1] < -0.5 * np.hypot(*down))
+    down = np.delete(v, list(garment.waist), axis=0).mean(axis=0) - waist
+    return float(np.degrees(np.arctan2(abs(down[0]), down[1])))
+
+
+def is_upside_down(vertices: np.ndarray, garment: Garment) -> bool:
+    """True when the garment hangs upwards: its body lies above its waistband."""
+    return tilt_degrees(vertices, garment) > 120.0
+
+
+def posture(vertices: np.ndarray, garment: Garment) -> int:
+    """0 upright (tilt <= 60 degrees), 1 lying (<= 120), 2 upside down."""
+    return int(min(tilt_degrees(vertices, garment) // 60.0001, 2))
 
 
 @dataclass
@@ -161,7 +171,8 @@ def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, 
     """Index of the winning start.
 
     ``objective``: the lowest objective. ``rules``: fewest failed rule checks first,
-    then upright before upside-down, then the lowest objective.
+    then upright before lying before upside-down (:func:`posture`), then the lowest
+    objective.
     """
     if preset.select == "objective":
         return int(np.argmin(totals))
@@ -171,7 +182,7 @@ def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, 
         if not np.isfinite(totals[i]):
             return (math.inf, True, math.inf)
         failed = sum(not ok for ok in rule_report(candidates[i], silhouette, garment).checks.values())
-        return (failed, is_upside_down(candidates[i], garment), float(totals[i]))
+        return (failed, posture(candidates[i], garment), float(totals[i]))
 
     return min(range(len(totals)), key=key)
 

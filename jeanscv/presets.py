@@ -20,7 +20,8 @@ class Preset:
     ``keep``: after ``prune_fraction`` of the iterations only the ``keep`` starts with
     the lowest objective go on (successive halving); None keeps all.
     ``select``: how the winning start is chosen: ``"objective"`` (lowest) or
-    ``"rules"`` (fewest failed rule checks, upright first, then lowest objective).
+    ``"rules"`` (fewest failed rule checks, then upright before lying before upside
+    down, then lowest objective).
     """
 
     name: str
@@ -63,7 +64,7 @@ PRESETS: dict[str, Preset] = {
             "share no vertex (adjacent strokes always overlap at their joint, which rewards "
             "ever longer edges), the dress code (L_inside) and the waistband's centring carry "
             "real weight, and the winning start is the one passing most rule checks, upright "
-            "before upside-down, then the lowest objective."
+            "before lying before upside-down, then the lowest objective."
         ),
     ),
     "paper": Preset(

@@ -164,3 +164,18 @@ def test_batch_adam_matches_torch_adam():
         (0.5 * theirs_param**4 - 0.5 * theirs_param**2).sum().backward()
         theirs.step()
     assert torch.allclose(ours.params, theirs_param.detach(), rtol=1e-10, atol=1e-12)
+
+
+def test_posture_classes():
+    from jeanscv.fitter import posture, tilt_degrees
+
+    centre = JEANS.template[list(JEANS.waist)].mean(axis=0)
+
+    def rotated(degrees):
+        angle = np.radians(degrees)
+        rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+        return (JEANS.template - centre) @ rot.T + centre
+
+    assert tilt_degrees(JEANS.template, JEANS) == pytest.approx(0.0, abs=0.1)  # the template is nearly symmetric
+    assert [posture(rotated(d), JEANS) for d in (0, 45, 90, -90, 135, 180)] == [0, 0, 1, 1, 2, 2]
+    assert tilt_degrees(rotated(90), JEANS) == pytest.approx(90.0, abs=0.1)
