@@ -189,13 +189,16 @@ def fit(
 ):
     """Fit a garment to a :class:`Silhouette` or directly to a 256x256 ``S`` (array or tensor).
 
-    Returns a :class:`jeanscv.fitter.FitResult` (vertices in canvas pixels, per-term
-    losses, the loss history).
+    Returns a :class:`jeanscv.fitter.FitResult`: vertices in canvas pixels (and in image
+    pixels, ``vertices_image``, for a Silhouette), per-term losses, the loss history.
     """
     from .fitter import fit as _fit
 
     canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
-    return _fit(canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts, device=resolve_device(device))
+    result = _fit(canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts, device=resolve_device(device))
+    if isinstance(silhouette, Silhouette):
+        result.vertices_image = silhouette.framing.to_image(result.vertices)
+    return result
 
 
 def resolve_device(device: str) -> str:

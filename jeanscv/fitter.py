@@ -77,6 +77,7 @@ class FitResult:
     seconds: float
     device: str
     extra: dict = field(default_factory=dict)
+    vertices_image: np.ndarray | None = None  # (N, 2) input-image pixels, when a framing is known
 
 
 def initial_placements(

@@ -179,3 +179,20 @@ def test_posture_classes():
     assert tilt_degrees(JEANS.template, JEANS) == pytest.approx(0.0, abs=0.1)  # the template is nearly symmetric
     assert [posture(rotated(d), JEANS) for d in (0, 45, 90, -90, 135, 180)] == [0, 0, 1, 1, 2, 2]
     assert tilt_degrees(rotated(90), JEANS) == pytest.approx(90.0, abs=0.1)
+
+
+def test_a_blur_schedule_runs_coarse_to_fine_with_kornia(zoo):
+    import dataclasses
+
+    from jeanscv.fitter import _blurred, blur_schedule
+    from jeanscv.presets import get_preset
+
+    assert blur_schedule((4.0, 2.0), 9) == [4.0] * 3 + [2.0] * 3 + [0.0] * 3
+    silhouette = torch.as_tensor(zoo["disc"])
+    blurred = _blurred(silhouette, 3.0)
+    # Mass is kept (the disc is far from the border) and the edge is softened.
+    assert float(blurred.sum()) == pytest.approx(float(silhouette.sum()), rel=1e-4)
+    assert float(((blurred > 0.02) & (blurred < 0.98)).sum()) > 2 * float(((silhouette > 0.02) & (silhouette < 0.98)).sum())
+    smooth = dataclasses.replace(get_preset("default"), blur_sigmas=(4.0, 2.0))
+    result = fit(zoo["blob_a"], smooth, iterations=60)
+    assert rule_report(result.vertices, zoo["blob_a"]).passed
