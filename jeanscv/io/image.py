@@ -9,7 +9,10 @@ RAW file is actually loaded because the import is slow. Every way a file can be 
 
 from __future__ import annotations
 
+import contextlib
+import os
 import struct
+import sys
 import threading
 import warnings
 import zlib
@@ -317,6 +320,25 @@ def _exif_without_orientation(exif: bytes | None) -> bytes | None:
         return None  # damaged EXIF is not worth copying into an output
 
 
+@contextlib.contextmanager
+def _libraw_stderr_silenced():
+    """LibRaw prints its own complaints ("Unexpected end of file") to stderr from C; the
+    reason reaches the user once, as our JeansError, so its line is dropped."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no usable file descriptor 2: nothing to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 def _load_raw(path: Path, max_pixels: int, full_size: bool) -> LoadedImage:
     """Demosaic a camera RAW file with LibRaw: camera white balance, sRGB, 8 bits."""
     import rawpy  # heavy; only loaded when a RAW file is opened
@@ -324,7 +346,8 @@ def _load_raw(path: Path, max_pixels: int, full_size: bool) -> LoadedImage:
     raw = rawpy.RawPy()
     try:
         try:
-            raw.open_file(str(path))
+            with _libraw_stderr_silenced():
+                raw.open_file(str(path))
         except rawpy.LibRawError as exc:
             raise JeansError("not a readable RAW file: unsupported camera or not a RAW file") from exc
         except OSError as exc:
@@ -335,14 +358,15 @@ def _load_raw(path: Path, max_pixels: int, full_size: bool) -> LoadedImage:
         width, height = (sizes.height, sizes.width) if flip & 4 else (sizes.width, sizes.height)
         _check_dimensions(width, height, max_pixels)
         try:
-            raw.unpack()
-            rgb = raw.postprocess(
-                use_camera_wb=True,
-                output_color=rawpy.ColorSpace.sRGB,
-                output_bps=8,
-                half_size=not full_size,
-                gamma=(2.4, 12.92),  # the sRGB curve (LibRaw's default is BT.709)
-            )
+            with _libraw_stderr_silenced():
+                raw.unpack()
+                rgb = raw.postprocess(
+                    use_camera_wb=True,
+                    output_color=rawpy.ColorSpace.sRGB,
+                    output_bps=8,
+                    half_size=not full_size,
+                    gamma=(2.4, 12.92),  # the sRGB curve (LibRaw's default is BT.709)
+                )
         except rawpy.LibRawError as exc:
             raise JeansError("not a readable RAW file: raw data truncated or corrupt") from exc
     finally:
