@@ -102,7 +102,7 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
     the bottom shows the progress through the iterations; the last frame is held.
     Needs ``result.fit.trajectory``: ``(iterations + 1, N, 2)`` canvas pixels.
     """
-    from jeanscv.compositing import composite_jeans, render_silhouette_figure
+    from jeanscv.api import draw_figure, draw_garment
 
     fit, silhouette = result.fit, result.silhouette
     trajectory = np.asarray(fit.trajectory, dtype=np.float64)
@@ -114,7 +114,7 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
 
         def draw(canvas_vertices: np.ndarray) -> np.ndarray:
             verts = silhouette.to_mask(canvas_vertices) * scale
-            return render_silhouette_figure(small, verts, fit.garment)
+            return draw_figure(small, verts, fit.garment)
     else:
         photo = on_white(result.source.pixels if result.source is not None else result.image)
         scale, size = _scaled(photo.shape[1::-1], max_side)
@@ -122,7 +122,7 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
 
         def draw(canvas_vertices: np.ndarray) -> np.ndarray:
             verts = silhouette.framing.to_image(canvas_vertices) * scale
-            return composite_jeans(small, verts, fit.garment, None, style="flat", clip=False)
+            return draw_garment(small, verts, fit.garment)
 
     width, height = size
     bar = max(2, height // 80)

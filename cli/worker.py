@@ -130,9 +130,9 @@ def picture(result, options: Options):
     image = add_captions(result.image, options.top, options.bottom)
     if options.side_by_side:
         if result.kind == "silhouette":
-            from jeanscv.compositing import render_silhouette_figure
+            from jeanscv.api import figure
 
-            original = render_silhouette_figure(result.silhouette.mask, None)
+            original = figure(result.silhouette)
         else:
             original = result.source.pixels
         image = side_by_side(original, image)

@@ -231,6 +231,23 @@ def composite(
     )
 
 
+def draw_garment(
+    image: np.ndarray, vertices_image: np.ndarray, garment: Garment = JEANS, style: str = "flat"
+) -> np.ndarray:
+    """Paint a garment polygon given in image pixels onto ``image`` (no clipping):
+    for drawing intermediate states, such as the frames of an optimisation animation."""
+    from .compositing import composite_jeans
+
+    return composite_jeans(image, vertices_image, garment, None, style=style, clip=False)
+
+
+def draw_figure(mask: np.ndarray, vertices_mask: np.ndarray | None, garment: Garment = JEANS) -> np.ndarray:
+    """The paper's figure of a ``(H, W)`` alpha with a garment polygon in its pixels."""
+    from .compositing import render_silhouette_figure
+
+    return render_silhouette_figure(mask, vertices_mask, garment)
+
+
 def figure(silhouette: Silhouette, fit_result=None) -> np.ndarray:
     """The paper's figure style at the mask's resolution: black shape, blue jeans, white ground.
 
@@ -380,6 +397,8 @@ __all__ = [
     "apply_jeans",
     "composite",
     "extract_silhouette",
+    "draw_figure",
+    "draw_garment",
     "figure",
     "fit",
     "load_image",
