@@ -29,6 +29,26 @@ L104 232 L106 130 L98 130 L96 60 L113 50 Z" fill="#000"/></svg>
 """
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _single_torch_thread():
+    """One torch thread for every test: on the 2-core CI box torch's parallel
+    index_add/scatter run ~30x slower than serial ones under load, and the tests
+    check numbers, not threading (the fitter sets its own thread count anyway)."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def float64_tensor(array):
+    """``array`` as a float64 torch tensor."""
+    import torch
+
+    return torch.as_tensor(np.asarray(array, dtype=np.float64))
+
+
 @pytest.fixture
 def run_cli():
     """``run_cli(*args)`` -> click ``Result`` of ``jeanscv ARGS`` run in-process (stderr separate)."""

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from conftest import float64_tensor as _t
 
 from jeanscv.errors import JeansError
 from jeanscv.garments import JEANS, Garment
@@ -29,19 +30,6 @@ PAPER_SILHOUETTES = ["person", "vitruvian", "dog", "horse", "tripod", "balldrago
 TERMS = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
 F64 = torch.float64
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    # torch's parallel index_add is ~30x slower than the serial one on the loaded
-    # 2-core CI box; these tests check numbers, not threading.
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
-def _t(array) -> torch.Tensor:
-    return torch.as_tensor(np.asarray(array, dtype=np.float64))
 
 
 def _terms(vertices, silhouette, **kwargs) -> dict[str, float]:

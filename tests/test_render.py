@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from conftest import float64_tensor as _t
 
 from jeanscv.render import (
     PolygonRasterizer,
@@ -30,19 +31,6 @@ from reference import capsule_coverage_ref, polygon_coverage_ref
 H, W = 44, 56
 F64 = torch.float64
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    # On the 2-core CI box, torch's parallel index_add/scatter are ~30x slower than
-    # serial ones under load; the tests check numbers, not threading.
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
-def _t(array) -> torch.Tensor:
-    return torch.as_tensor(np.asarray(array, dtype=np.float64))
 
 
 def _off_grid(points: np.ndarray, gap: float = 1e-3) -> np.ndarray:
