@@ -60,6 +60,41 @@ def _affine_residual_operator(template_bytes: bytes, count: int) -> np.ndarray:
     return np.eye(count) - hat
 
 
+@dataclass(frozen=True)
+class _GarmentTensors:
+    """Index and operator tensors of a garment, built once per garment, dtype and device."""
+
+    residual: Tensor  # (N, N) affine residual operator
+    waist: Tensor  # (2,)
+    open_edges: Tensor
+    closed_edges: Tensor
+    pairs: Tensor  # (P, 2)
+
+
+_GARMENT_TENSORS: dict[tuple, tuple[Garment, _GarmentTensors]] = {}
+
+
+def _garment_tensors(garment: Garment, inter_pairs: str, like: Tensor) -> _GarmentTensors:
+    key = (id(garment), inter_pairs, like.dtype, str(like.device))
+    cached = _GARMENT_TENSORS.get(key)
+    if cached is not None and cached[0] is garment:
+        return cached[1]
+    device = like.device
+
+    def index(values) -> Tensor:
+        return torch.as_tensor(np.asarray(values, dtype=np.int64), device=device)
+
+    tensors = _GarmentTensors(
+        residual=like.new_tensor(affine_residual_operator(garment.template)),
+        waist=index(garment.waist),
+        open_edges=index(garment.open_edges),
+        closed_edges=index(garment.closed_edges),
+        pairs=index(garment.edge_pairs(adjacent=inter_pairs == "all")).reshape(-1, 2),
+    )
+    _GARMENT_TENSORS[key] = (garment, tensors)
+    return tensors
+
+
 @dataclass
 class CanvasWindow:
     """Per-candidate crops of the canvas where the polygon and its strokes live."""
@@ -168,15 +203,12 @@ def _pair_terms(shared: SharedPixels, areas: Tensor, pairs: Tensor) -> Tensor:
     return (overlap / union.clamp(min=_EPS)).sum(dim=1)
 
 
-def _union_on_body(
-    shared: SharedPixels, areas: Tensor, on_body: Tensor, edge_ids: tuple[int, ...]
-) -> Tensor:
-    """``sum R(E) S / sum R(E)`` for the union of the strokes of ``edge_ids``.
+def _union_on_body(shared: SharedPixels, areas: Tensor, on_body: Tensor, ids: Tensor) -> Tensor:
+    """``sum R(E) S / sum R(E)`` for the union of the strokes of edges ``ids``.
 
     Strokes drawn together clamp at 1 where they overlap, so the union's sums are
     the per-stroke sums less the excess at shared pixels.
     """
-    ids = torch.as_tensor(edge_ids, device=areas.device)
     stacked = shared.alpha.index_select(1, ids).sum(dim=1)
     excess = stacked - torch.clamp(stacked, max=1.0)
     batch = areas.shape[0]
@@ -213,11 +245,11 @@ def jalgorithm_terms(
     scale = float(silhouette.shape[-1])
     normalised = vertices / scale
 
-    waist = normalised[:, list(garment.waist)].mean(dim=1)
+    indices = _garment_tensors(garment, inter_pairs, vertices)
+    waist = normalised.index_select(1, indices.waist).mean(dim=1)
     center = ((waist - 0.5) ** 2).sum(dim=-1)
 
-    residual_op = vertices.new_tensor(affine_residual_operator(garment.template))
-    rigid = (torch.einsum("ij,bjk->bik", residual_op, normalised) ** 2).sum(dim=(-2, -1))
+    rigid = (torch.einsum("ij,bjk->bik", indices.residual, normalised) ** 2).sum(dim=(-2, -1))
 
     window = canvas_window(vertices, silhouette, margin=1.0)
     local = vertices - window.origin[:, None, :]
@@ -251,10 +283,9 @@ def jalgorithm_terms(
     on_body = (alpha * s_cells).sum(dim=-1)
     shared = _shared_pixels(alpha, key, silhouette_flat, pixels, per_candidate=silhouette.dim() == 3)
 
-    open_term = -_union_on_body(shared, areas, on_body, garment.open_edges)
-    closed_term = _union_on_body(shared, areas, on_body, garment.closed_edges)
-    pairs = torch.as_tensor(garment.edge_pairs(adjacent=inter_pairs == "all"), device=vertices.device)
-    inter = _pair_terms(shared, areas, pairs)
+    open_term = -_union_on_body(shared, areas, on_body, indices.open_edges)
+    closed_term = _union_on_body(shared, areas, on_body, indices.closed_edges)
+    inter = _pair_terms(shared, areas, indices.pairs)
 
     return {
         "center": center,
