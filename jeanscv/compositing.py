@@ -698,6 +698,9 @@ def composite_jeans(
         return out
     x0, y0, x1, y1 = box
     local = vertices - np.array([x0, y0], np.float64)
+    if style != "flat" and (y1 - y0) * (x1 - x0) > DENIM_MAX_PIXELS:
+        _composite_large(out, image, box, local, mask if clip else None, clip, garment, seed)
+        return out
     coverage = polygon_coverage_patch(local, y1 - y0, x1 - x0)
     weight = _clip_weight(image, mask, box) if clip else None
     alpha = coverage if weight is None else coverage * weight
@@ -724,23 +727,69 @@ def _denim_within_budget(
     image: np.ndarray, box: tuple[int, int, int, int], local: np.ndarray, coverage: np.ndarray,
     alpha: np.ndarray, garment: Garment, seed: int,
 ) -> np.ndarray:
-    """Denim colour ``(h, w, 3)`` over ``box``, rendered at most ``DENIM_MAX_PIXELS`` large."""
-    h, w = coverage.shape
-    factor = min(1.0, float(np.sqrt(DENIM_MAX_PIXELS / float(h * w))))
-    if factor >= 1.0:
-        return _render_denim(image, box, _layout(local, garment), coverage, alpha, garment, seed)
+    """Denim colour ``(h, w, 3)`` over a box of at most ``DENIM_MAX_PIXELS``."""
+    return _render_denim(image, box, _layout(local, garment), coverage, alpha, garment, seed)
+
+
+def _composite_large(
+    out: np.ndarray, image: np.ndarray, box: tuple[int, int, int, int], local: np.ndarray,
+    mask: np.ndarray | None, clip: bool, garment: Garment, seed: int,
+) -> None:
+    """Denim over a box larger than ``DENIM_MAX_PIXELS``, painted into ``out`` in place.
+
+    The denim is rendered on a reduced grid of at most ``DENIM_MAX_PIXELS`` (the texture
+    scales with the garment, so it only softens) and the full-resolution work
+    (coverage, clip weight, upsampling, painting) runs in row strips, so memory stays
+    bounded whatever the photo's size.
+    """
     x0, y0, x1, y1 = box
+    h, w = y1 - y0, x1 - x0
+    factor = float(np.sqrt(DENIM_MAX_PIXELS / float(h * w)))
     small_w, small_h = max(1, round(w * factor)), max(1, round(h * factor))
-    scale = np.array([small_w / w, small_h / h])
+    sx, sy = small_w / w, small_h / h
+    small_vertices = local * np.array([sx, sy])
     small_image = cv2.resize(image[y0:y1, x0:x1], (small_w, small_h), interpolation=cv2.INTER_AREA)
-    small_vertices = local * scale
     small_coverage = polygon_coverage_patch(small_vertices, small_h, small_w)
-    small_alpha = cv2.resize(alpha, (small_w, small_h), interpolation=cv2.INTER_AREA)
+    small_alpha = small_coverage
+    if clip:
+        small_weight = _clip_weight(small_image, _resized_mask(mask, box, (small_w, small_h)), (0, 0, small_w, small_h))
+        if small_weight is not None:
+            small_alpha = small_coverage * small_weight
     small = _render_denim(
         small_image, (0, 0, small_w, small_h), _layout(small_vertices, garment), small_coverage, small_alpha,
         garment, seed,
     )
-    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    rows = max(1, _STRIP_PIXELS // max(w, 1))
+    for top in range(0, h, rows):
+        strip = (x0, y0 + top, x1, min(y0 + top + rows, y1))
+        height = strip[3] - strip[1]
+        coverage = polygon_coverage_patch(local - np.array([0.0, top]), height, w)
+        weight = _clip_weight(image, mask, strip) if clip else None
+        alpha = coverage if weight is None else coverage * weight
+        if not np.any(alpha > 0.5 / 255):
+            continue
+        # The strip's rows of the upsampled denim: INTER_LINEAR resize with pixel
+        # centres at +0.5, written as the inverse affine map of warpAffine.
+        to_small = np.array([[sx, 0.0, 0.5 * sx - 0.5], [0.0, sy, (top + 0.5) * sy - 0.5]])
+        jeans = cv2.warpAffine(
+            small, to_small, (w, height), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+        _paint_over(out[strip[1] : strip[3], x0:x1], jeans, alpha)
+
+
+def _resized_mask(mask: np.ndarray | None, box: tuple[int, int, int, int], size: tuple[int, int]) -> np.ndarray | None:
+    """The mask's crop over ``box`` as float alpha resized to ``size`` (area averaging)."""
+    if mask is None:
+        return None
+    x0, y0, x1, y1 = box
+    crop = np.asarray(mask)[y0:y1, x0:x1]
+    if crop.dtype == bool:
+        crop = crop.astype(np.uint8) * np.uint8(255)
+    elif crop.dtype != np.uint8:
+        crop = np.clip(crop.astype(np.float32), 0.0, 1.0)
+    resized = cv2.resize(crop, size, interpolation=cv2.INTER_AREA)
+    return resized.astype(np.float32) / 255.0 if resized.dtype == np.uint8 else resized
 
 
 def render_silhouette_figure(
