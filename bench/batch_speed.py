@@ -12,21 +12,22 @@ from __future__ import annotations
 
 import argparse
 import math
-import resource
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-from PIL import Image
-
-from jeanscv.synthetic import random_creature
+# The parent stays small: a child forked from a 2-GB parent would report the
+# parent's pages as its own peak memory, so photos are made in a child process.
 
 
 def make_photo(path: Path, seed: int, megapixels: float) -> None:
+    import numpy as np
+    from PIL import Image
     from skimage import data
+
+    from jeanscv.synthetic import random_creature
 
     rng = np.random.default_rng(seed)
     width = int(math.sqrt(megapixels * 1e6 * 4 / 3))
@@ -45,17 +46,43 @@ def make_photo(path: Path, seed: int, megapixels: float) -> None:
     Image.fromarray(np.clip(photo, 0, 255).astype(np.uint8)).save(path, quality=90)
 
 
+def make_photos(folder: Path, seeds: range, megapixels: float) -> None:
+    """Make the photos in a child process (see above)."""
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); from batch_speed import make_photo; from pathlib import Path; "
+        "[make_photo(Path(sys.argv[2]) / f'photo_{s:03d}.jpg', s, float(sys.argv[5])) "
+        "for s in range(int(sys.argv[3]), int(sys.argv[4]))]"
+    )
+    subprocess.run(
+        [sys.executable, "-c", code, str(Path(__file__).parent), str(folder), str(seeds.start), str(seeds.stop), str(megapixels)],
+        check=True,
+    )
+
+
+_MEASURED = (
+    "import resource, runpy, sys\n"
+    "report = sys.argv[1]\n"
+    "sys.argv = ['jeanscv'] + sys.argv[2:]\n"
+    "try:\n"
+    "    runpy.run_module('jeanscv', run_name='__main__')\n"
+    "except SystemExit:\n"
+    "    pass\n"
+    "peak = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
+    "open(report, 'w').write(str(peak))\n"
+)
+
+
 def run(folder: Path, out: Path, jobs: int) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MB) of the busiest process of one CLI run."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    """Wall seconds and peak RSS (MB) of the busiest process of one CLI run, as the
+    CLI process itself (and its -j workers) saw it."""
+    report = out.with_suffix(".peak")
     began = time.perf_counter()
     subprocess.run(
-        [sys.executable, "-m", "jeanscv", str(folder), "-o", str(out), "-j", str(jobs), "-q", "--overwrite"],
+        [sys.executable, "-c", _MEASURED, str(report), str(folder), "-o", str(out), "-j", str(jobs), "-q", "--overwrite"],
         check=True,
     )
     wall = time.perf_counter() - began
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    return wall, max(peak, before) / 1024.0
+    return wall, int(report.read_text()) / 1024.0
 
 
 def main() -> None:
@@ -67,8 +94,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "photos"
         folder.mkdir()
-        for seed in range(args.count):
-            make_photo(folder / f"photo_{seed:03d}.jpg", seed, args.megapixels)
+        make_photos(folder, range(args.count), args.megapixels)
         print(f"{args.count} photos of {args.megapixels:g} MP")
         print("| jobs | wall s | photos/s | peak RSS per process (MB) |")
         print("|---|---|---|---|")
@@ -77,7 +103,7 @@ def main() -> None:
             print(f"| {jobs} | {wall:.1f} | {args.count / wall:.2f} | {peak:.0f} |", flush=True)
         big = Path(tmp) / "big"
         big.mkdir()
-        make_photo(big / "big.jpg", 7, 24.0)
+        make_photos(big, range(7, 8), 24.0)
         wall, peak = run(big, Path(tmp) / "outbig", 1)
         print(f"\none 24-MP photo: {wall:.1f} s, peak RSS {peak:.0f} MB")
 
