@@ -333,6 +333,21 @@ def test_terms_gradcheck_small_canvas(term: str) -> None:
     assert torch.autograd.gradcheck(lambda v: jalgorithm_terms(v, s)[term], (x,))
 
 
+@pytest.mark.parametrize("inter_pairs", ["all", "non_adjacent"])
+def test_loss_module_gradcheck_small_canvas(inter_pairs: str) -> None:
+    """The nn.Module form, batched (B, N, 2) -> (B,), with the default preset's weights too."""
+    from jeanscv.presets import get_preset
+
+    s = _t(_smooth_silhouette(32, (15.3, 17.1), (9.0, 12.0), 2.0))
+    rng = np.random.default_rng(2)
+    vertices = np.stack([_off_grid((JEANS.template - 128) * 0.2 + 16 + rng.normal(0, 0.3, (8, 2))) for _ in range(2)])
+    x = _t(vertices).requires_grad_(True)
+    for weights in (None, get_preset("default").weights):
+        module = JalgorithmLoss(s, weights=weights, inter_pairs=inter_pairs)
+        assert module(x).shape == (2,)
+        assert torch.autograd.gradcheck(module, (x,))
+
+
 def test_terms_gradients_match_central_differences_on_full_canvas() -> None:
     s = _t(_smooth_silhouette(256, (128, 140), (70, 95), 6.0))
     base = JEANS.template + np.random.default_rng(3).normal(0, 3, (8, 2))
