@@ -710,7 +710,7 @@ def composite_jeans(
     if style == "flat":
         jeans = np.broadcast_to(np.array(garment.extra.get("colour", FLAT_BLUE), np.float32), (*alpha.shape, 3))
     else:
-        jeans = _denim_within_budget(image, box, local, coverage, alpha, garment, seed)
+        jeans = _render_denim(image, box, _layout(local, garment), coverage, alpha, garment, seed)
 
     _paint_over(out[y0:y1, x0:x1], jeans, alpha)
     return out
@@ -721,14 +721,6 @@ def composite_jeans(
 #: float layers (about 70 bytes a pixel) on 24-MP photos; the texture scales with the
 #: garment, so it only softens slightly.
 DENIM_MAX_PIXELS = 4_000_000
-
-
-def _denim_within_budget(
-    image: np.ndarray, box: tuple[int, int, int, int], local: np.ndarray, coverage: np.ndarray,
-    alpha: np.ndarray, garment: Garment, seed: int,
-) -> np.ndarray:
-    """Denim colour ``(h, w, 3)`` over a box of at most ``DENIM_MAX_PIXELS``."""
-    return _render_denim(image, box, _layout(local, garment), coverage, alpha, garment, seed)
 
 
 def _composite_large(
