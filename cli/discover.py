@@ -12,7 +12,6 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-SVG_EXTENSIONS = frozenset({".svg", ".svgz"})
 OUTPUT_FORMATS = ("png", "jpg", "webp")
 
 # Output extension kept for photos whose format the writers can encode; everything
@@ -62,6 +61,7 @@ def is_own_output(path: Path) -> bool:
 def candidate_extensions() -> frozenset[str]:
     """Lower-case extensions taken from folders: photos, RAW and SVG."""
     from jeanscv.io.image import SUPPORTED_EXTENSIONS
+    from jeanscv.io.svg import SVG_EXTENSIONS
 
     return SUPPORTED_EXTENSIONS | SVG_EXTENSIONS
 

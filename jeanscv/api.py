@@ -16,8 +16,8 @@ from .errors import JeansError
 from .framing import Framing, frame_mask, identity_framing
 from .garments import JEANS, Garment, get_garment
 from .geometry import CANVAS_SIZE
+from .io.svg import SVG_EXTENSIONS
 
-SVG_EXTENSIONS = frozenset({".svg", ".svgz"})
 KINDS = ("auto", "silhouette", "photo")
 
 

@@ -45,11 +45,6 @@ def tilt_degrees(vertices: np.ndarray, garment: Garment) -> float:
     return float(np.degrees(np.arctan2(abs(down[0]), down[1])))
 
 
-def is_upside_down(vertices: np.ndarray, garment: Garment) -> bool:
-    """True when the garment hangs upwards: its body lies above its waistband."""
-    return tilt_degrees(vertices, garment) > 120.0
-
-
 def posture(vertices: np.ndarray, garment: Garment) -> int:
     """0 upright (tilt <= 60 degrees), 1 lying (<= 120), 2 upside down."""
     return int(min(tilt_degrees(vertices, garment) // 60.0001, 2))

@@ -39,6 +39,9 @@ import numpy as np
 from jeanscv.errors import JeansError
 from jeanscv.geometry import invert_affine
 
+#: File extensions read as SVG silhouettes.
+SVG_EXTENSIONS = frozenset({".svg", ".svgz"})
+
 FLATTEN_TOLERANCE = 0.05
 """Largest distance, in canvas px, between a curve and its flattened polyline."""
 
