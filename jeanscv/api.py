@@ -190,9 +190,8 @@ def extract_silhouette(
         result = segment_with(method, image)
     else:
         result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
-    alpha = result.mask.astype(np.float32)
-    canvas, framing = frame_mask(alpha)
-    return Silhouette(alpha, canvas, framing, result.method, result.contour, dict(result.details))
+    canvas, framing = frame_mask(result.mask)
+    return Silhouette(result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details))
 
 
 def fit(

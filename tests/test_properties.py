@@ -108,3 +108,15 @@ def test_framing_round_trip(width, height, box, canvas_points):
     # The object's box lands centred on the canvas.
     centre = framing.to_canvas(np.array([(x0 + x1) / 2, (y0 + y1) / 2]))
     assert np.allclose(centre, 128.0, atol=256.0 / framing.side + 1e-9)
+
+
+@settings(max_examples=40)
+@given(arrays(np.bool_, st.tuples(st.integers(1, 40), st.integers(1, 40))))
+def test_frame_mask_same_for_bool_and_float_masks(mask):
+    """A bool mask is framed without a full-frame float copy, with the same result."""
+    if not mask.any():
+        return
+    canvas_bool, framing_bool = frame_mask(mask)
+    canvas_float, framing_float = frame_mask(mask.astype(np.float32))
+    np.testing.assert_array_equal(canvas_bool, canvas_float)
+    assert framing_bool == framing_float

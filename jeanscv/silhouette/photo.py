@@ -35,6 +35,7 @@ from jeanscv.errors import JeansError
 METHODS = ("auto", "alpha", "threshold", "grabcut", "mask")
 
 _COARSE_SIZE = 320  # long side of GrabCut's first pass (speed: graph cuts are superlinear)
+_COARSE_ITERATIONS = 5  # GrabCut iterations of the first pass
 _MIN_FRACTION = 0.005  # smaller objects are treated as "nothing found"
 _FULL_FRACTION = 0.98  # photo masks covering more than this are "the whole frame"
 _KEEP_FRACTION = 0.25  # extra components kept if at least this fraction of the largest
@@ -458,12 +459,12 @@ def _grabcut_coarse(scene: _Scene, variant: str, rect=None) -> np.ndarray | None
     """
     if variant == "rect":
         labels = np.zeros(scene.rgb.shape[:2], np.uint8)
-        return _clean(_run_grabcut(scene.rgb, labels, 5, rect=rect))
+        return _clean(_run_grabcut(scene.rgb, labels, _COARSE_ITERATIONS, rect=rect))
     scale = "fine" if variant == "colour" else "texture"
     labels = _seed_labels(scene, scale)
     if labels is None:
         return None
-    return _clean(_run_grabcut(scene.rgb if scale == "fine" else scene.images["texture"], labels, 5))
+    return _clean(_run_grabcut(scene.rgb if scale == "fine" else scene.images["texture"], labels, _COARSE_ITERATIONS))
 
 
 def _refine(rgb: np.ndarray, coarse: np.ndarray, scene: _Scene, variant: str) -> np.ndarray:
