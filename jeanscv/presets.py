@@ -56,8 +56,8 @@ PRESETS: dict[str, Preset] = {
         },
         inter_pairs="non_adjacent",
         starts=12,
-        keep=4,
-        prune_fraction=0.3,
+        keep=2,
+        prune_fraction=0.1,
         select="rules",
         description=(
             "Designed to satisfy the paper's four rules: L_inter counts only edge pairs that "
