@@ -36,6 +36,10 @@ METHODS = ("auto", "alpha", "threshold", "grabcut", "mask")
 
 _COARSE_SIZE = 320  # long side of GrabCut's first pass (speed: graph cuts are superlinear)
 _COARSE_ITERATIONS = 5  # GrabCut iterations of the first pass
+# A colour GrabCut scoring this high is not second-guessed by the texture variant,
+# which saves a third of GrabCut's time: on 48 synthetic photos the texture variant
+# only ever won against colour scores under 0.77.
+_CONFIDENT_SCORE = 0.8
 _MIN_FRACTION = 0.005  # smaller objects are treated as "nothing found"
 _FULL_FRACTION = 0.98  # photo masks covering more than this are "the whole frame"
 _KEEP_FRACTION = 0.25  # extra components kept if at least this fraction of the largest
@@ -502,7 +506,8 @@ def _refine(rgb: np.ndarray, coarse: np.ndarray, scene: _Scene, variant: str) ->
 def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray, dict]:
     """GrabCut variants at coarse resolution, the best-scoring one refined at working
     resolution. With ``rect_work`` (x, y, w, h, working pixels) only the rect variant
-    runs, else "colour" and "texture"."""
+    runs, else "colour" and, unless colour scored at least ``_CONFIDENT_SCORE``,
+    "texture"."""
     if rect_work is not None:
         x, y, w, h = (v / scene.factor for v in rect_work)
         rect = (int(np.floor(x)), int(np.floor(y)), max(2, int(np.ceil(w))), max(2, int(np.ceil(h))))
@@ -511,6 +516,8 @@ def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray
         jobs = {"colour": {}, "texture": {}}
     variants = {}
     for variant, kwargs in jobs.items():
+        if variant == "texture" and "colour" in variants and variants["colour"][1]["score"] >= _CONFIDENT_SCORE:
+            continue
         try:
             mask = _grabcut_coarse(scene, variant, **kwargs)
         except JeansError:
