@@ -2,7 +2,10 @@
 
 Everything is computed only inside the jeans polygon's bounding box (plus a small
 margin), at the photo's full resolution, so a 24-MP photo costs about as much as the
-jeans it wears. Pixels outside that box are returned byte-identical.
+jeans it wears. Pixels outside that box are returned byte-identical. Inside it, the
+per-pixel colour and painting run in small row windows around the pixels the paint
+reaches (:func:`_windows`), skipping the part of the box the object clips away; only
+what needs neighbours (blurs, distances, noise) covers the whole box.
 
 Coordinates follow the package convention (x right, y down, pixel ``(c, r)`` covers
 ``[c, c+1) x [r, r+1)``). Images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA
@@ -17,6 +20,7 @@ own blurred luminance so the object's folds and shadows show through.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import cv2
@@ -145,17 +149,47 @@ class _Layer:
         if polygons:
             cv2.fillPoly(self.ink, [_cv_points(p) for p in polygons], round(255 * value), cv2.LINE_AA, _SHIFT)
 
-    def alpha(self, sigma: float = 0.0) -> np.ndarray:
-        """The ink as ``(h, w) float32`` in [0, 1], Gaussian-blurred by ``sigma`` px only
-        around where there is ink."""
-        out = np.zeros(self.ink.shape, np.float32)
+    def window(self, rows: slice, cols: slice) -> np.ndarray | None:
+        """The unblurred ink over a window as ``float32`` in [0, 1], or None where there
+        is none there (callers skip it: adding 0 or scaling by 1 changes no value)."""
+        ink = self.ink[rows, cols]
+        return np.multiply(ink, np.float32(1 / 255), dtype=np.float32) if ink.any() else None
+
+    def alpha(self, sigma: float = 0.0) -> _Field:
+        """The ink in [0, 1], Gaussian-blurred by ``sigma`` px only around where there
+        is ink, and stored only there."""
         x, y, w, h = cv2.boundingRect(self.ink)
         if w == 0:
-            return out
+            return _Field(np.zeros((0, 0), np.float32), 0, 0)
         pad = int(np.ceil(3 * sigma)) + 1
-        rows = slice(max(y - pad, 0), y + h + pad)
-        cols = slice(max(x - pad, 0), x + w + pad)
-        out[rows, cols] = _blur(self.ink[rows, cols].astype(np.float32) * np.float32(1 / 255), sigma)
+        rows = slice(max(y - pad, 0), min(y + h + pad, self.ink.shape[0]))
+        cols = slice(max(x - pad, 0), min(x + w + pad, self.ink.shape[1]))
+        return _Field(_blur(self.window(rows, cols), sigma), rows.start, cols.start)
+
+
+@dataclass(frozen=True)
+class _Field:
+    """A ``(h, w) float32`` field that is 0 except in a box at ``(top, left)``, where
+    it is ``values``."""
+
+    values: np.ndarray
+    top: int
+    left: int
+
+    def window(self, rows: slice, cols: slice) -> np.ndarray | None:
+        """The field over a window (read-only: it may be a view), or None where it is 0
+        (see :meth:`_Layer.window`)."""
+        inner = self.values[
+            max(rows.start - self.top, 0) : max(rows.stop - self.top, 0),
+            max(cols.start - self.left, 0) : max(cols.stop - self.left, 0),
+        ]
+        if inner.size == 0:
+            return None
+        if inner.shape == (rows.stop - rows.start, cols.stop - cols.start):
+            return inner
+        out = np.zeros((rows.stop - rows.start, cols.stop - cols.start), np.float32)
+        top, left = max(self.top - rows.start, 0), max(self.left - cols.start, 0)
+        out[top : top + inner.shape[0], left : left + inner.shape[1]] = inner
         return out
 
 
@@ -177,8 +211,13 @@ def _blur(field: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
+    """``x * x * (3 - 2 x)`` of ``x`` clipped to [0, 1], computed in ``x``'s memory."""
+    np.clip(x, 0.0, 1.0, out=x)
+    square = x * x
+    x *= 2.0
+    np.subtract(3.0, x, out=x)
+    x *= square
+    return x
 
 
 def _dashes(polyline: np.ndarray, dash: float, gap: float, box: tuple[int, int]) -> list[np.ndarray]:
@@ -301,14 +340,18 @@ class _FrameNoise:
         )
         self.width = w
 
-    def rows(self, top: int, bottom: int) -> np.ndarray:
-        """``(bottom - top, w) float32`` noise for patch rows ``top:bottom``."""
+    def rows(self, top: int, bottom: int, right: int | None = None) -> np.ndarray:
+        """``(bottom - top, right) float32`` noise for patch rows ``top:bottom``, columns
+        ``0:right`` (default: all). Only where the rows start moves the noise: a pixel's
+        value does not depend on how far right or down the rows are drawn."""
         matrix = self.to_grid.copy()
         matrix[:, 2] += matrix[:, 1] * top
         noise = cv2.warpAffine(
-            self.grid, matrix, (self.width, bottom - top), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP
+            self.grid, matrix, (self.width if right is None else right, bottom - top),
+            flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
         )
-        return noise * np.float32(1.0 / 0.8)  # bicubic smoothing leaves about 0.8 std
+        noise *= np.float32(1.0 / 0.8)  # bicubic smoothing leaves about 0.8 std
+        return noise
 
 
 def _ray_hit(layout: _Layout, origin: np.ndarray, direction: np.ndarray) -> float:
@@ -332,13 +375,37 @@ def _towards(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 @dataclass
 class _Details:
-    """What the garment construction adds to the plain cloth, as ``(h, w) float32`` fields."""
+    """What the garment construction adds to the plain cloth.
 
-    wear: np.ndarray  # added lightness (0 deep indigo .. 1 worn)
-    dark: np.ndarray  # multiplicative darkening (seams, shadows), 1 = none
-    thread: np.ndarray  # alpha of golden stitching
-    flip: np.ndarray  # 1 where the weave runs the other way (waistband, belt loops)
+    Blurred layers are fields, sharp ones stay 8-bit ink; both are read per window, as
+    are their combinations, so pixels the paint skips cost nothing.
+    """
+
+    wear: _Field  # added lightness (0 deep indigo .. 1 worn)
+    grooves: _Field  # seam and hem shadows, 1 = black
+    outline: _Field  # the belt loops' dark outline
+    raised: _Layer  # belt loops, which stand out of the shadows under them
+    flip: _Layer  # 1 where the weave runs the other way (waistband, belt loops)
+    thread: _Layer  # golden stitching
     metal: list  # (centre (2,), radius px, rgb (3,)) of button and rivets
+
+    def dark(self, rows: slice, cols: slice) -> np.ndarray:
+        """Multiplicative darkening (seams, shadows; 1 = none) over a window."""
+        grooves = self.grooves.window(rows, cols)
+        if grooves is None:
+            dark = np.ones((rows.stop - rows.start, cols.stop - cols.start), np.float32)
+        else:
+            dark = 1.0 - grooves
+        flip = self.flip.window(rows, cols)
+        if flip is not None:
+            dark *= 1.0 - 0.2 * flip
+        loop = self.raised.window(rows, cols)
+        if loop is not None:
+            dark += loop * (1.0 - dark)  # the loop stands out of the shadow under it
+        outline = self.outline.window(rows, cols)
+        if outline is not None:
+            dark *= 1.0 - outline
+        return dark
 
 
 def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rng: np.random.Generator) -> _Details:
@@ -461,19 +528,17 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
     flip.polygons(loops)
     wear.polygons(loops, 0.2)
 
-    dark = 1.0 - grooves.alpha(0.5 * seam_w)
-    band_alpha = flip.alpha()
-    dark *= 1.0 - 0.2 * band_alpha
-    loop_alpha = raised.alpha()
-    dark += loop_alpha * (1.0 - dark)  # the loop stands out of the shadow under it
-    dark *= 1.0 - outline.alpha(0.25 * seam_w)
     return _Details(
-        wear=wear.alpha(0.4 * seam_w), dark=dark, thread=thread.alpha(), flip=band_alpha, metal=metal
+        wear=wear.alpha(0.4 * seam_w), grooves=grooves.alpha(0.5 * seam_w), outline=outline.alpha(0.25 * seam_w),
+        raised=raised, flip=flip, thread=thread, metal=metal,
     )
 
 
-def _photo_shading(image: np.ndarray, box: tuple[int, int, int, int], weight: np.ndarray, unit: float) -> np.ndarray:
-    """Multiplicative shading ``(h, w) float32`` from the photo under the jeans.
+def _photo_shading(
+    image: np.ndarray, box: tuple[int, int, int, int], weight: np.ndarray, unit: float,
+) -> Callable[[slice, slice], np.ndarray]:
+    """Multiplicative shading from the photo under the jeans, as a function of a window
+    ``(rows, cols)`` of the patch that returns the shading there, ``float32``.
 
     The photo's luminance, blurred so fur or print detail does not imprint on the
     cloth, over its weighted mean under the jeans: 1 on average, below 1 in the
@@ -485,25 +550,62 @@ def _photo_shading(image: np.ndarray, box: tuple[int, int, int, int], weight: np
     h_img, w_img = image.shape[:2]
     px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
     px1, py1 = min(x1 + pad, w_img), min(y1 + pad, h_img)
-    luma = cv2.cvtColor(np.ascontiguousarray(image[py0:py1, px0:px1, :3]), cv2.COLOR_RGB2GRAY)
+    to_grey = cv2.COLOR_RGBA2GRAY if image.shape[2] == 4 else cv2.COLOR_RGB2GRAY
+    luma = cv2.cvtColor(image[py0:py1, px0:px1], to_grey)
     luma = _blur(luma.astype(np.float32), sigma)[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
     total = float(weight.sum(dtype=np.float64))
     mean = float((luma * weight).sum(dtype=np.float64) / total) if total > 0 else float(luma.mean())
-    shade = np.clip(luma * np.float32(1.0 / max(mean, 1.0)), 0.4, 1.6)
-    return shade ** np.float32(0.8)
+    gain = np.float32(1.0 / max(mean, 1.0))
+
+    def shade(rows: slice, cols: slice) -> np.ndarray:
+        out = luma[rows, cols] * gain
+        np.clip(out, 0.4, 1.6, out=out)
+        return np.power(out, np.float32(0.8), out=out)
+
+    return shade
 
 
-# Rows of the patch textured at a time, to bound the texture's temporaries.
+# Rows of the patch whose noise is drawn at a time, to bound the noise's temporaries.
+# The noise of a strip depends on where strips start, so this also fixes the bytes.
 _TEXTURE_ROWS = 256
+# Rows of the per-pixel work at a time: windows this small keep their float
+# temporaries in cache and hug the painted pixels (a divisor of _TEXTURE_ROWS).
+_WINDOW_ROWS = 16
+# At least this many empty columns split a window in two (between the legs, say):
+# narrower gaps cost less to compute than another window's per-call overhead.
+_WINDOW_GAP = 128
 
 
-def _render_denim(
+def _windows(needed: np.ndarray, top: int = 0) -> list[tuple[slice, slice]]:
+    """``(rows, cols)`` boxes of at most ``_WINDOW_ROWS`` rows that hold every True pixel
+    of ``needed`` ``(h, w)``, rows offset by ``top``.
+
+    The object clips about half the jeans' bounding box away; per-pixel work done in
+    these boxes skips most of that, without the cost of gathering scattered pixels.
+    """
+    boxes = []
+    for start in range(0, needed.shape[0], _WINDOW_ROWS):
+        chunk = needed[start : start + _WINDOW_ROWS]
+        cols = np.flatnonzero(chunk.any(axis=0))
+        if not cols.size:
+            continue
+        used = np.flatnonzero(chunk.any(axis=1))
+        rows = slice(top + start + int(used[0]), top + start + int(used[-1]) + 1)
+        gaps = np.flatnonzero(np.diff(cols) > _WINDOW_GAP)
+        for left, right in zip(cols[np.r_[0, gaps + 1]], cols[np.r_[gaps, cols.size - 1]]):
+            boxes.append((rows, slice(int(left), int(right) + 1)))
+    return boxes
+
+
+def _denim_windows(
     image: np.ndarray, box: tuple[int, int, int, int], layout: _Layout, coverage: np.ndarray,
-    weight: np.ndarray, garment: Garment, seed: int,
-) -> np.ndarray:
-    """Denim colour ``(h, w, 3) float32`` (0..255) over the patch ``box`` of ``image``.
+    weight: np.ndarray, garment: Garment, seed: int, needed: np.ndarray,
+) -> Iterator[tuple[slice, slice, np.ndarray]]:
+    """Denim colour over the patch ``box`` of ``image``, one window at a time.
 
-    ``weight`` is the jeans' final alpha there, which sets the shading's mean.
+    Yields ``(rows, cols, colour)`` for the :func:`_windows` of ``needed`` ``(h, w)
+    bool``, ``colour`` being the window's ``(3, m, n) float32`` planes (0..255).
+    ``weight`` is the jeans' final alpha, which sets the shading's mean.
     """
     shape = h, w = coverage.shape
     unit = layout.unit
@@ -513,59 +615,122 @@ def _render_denim(
     # Wear: lighter down the middle of each panel (it rubs), blotchy fading, and
     # slubby warp yarns (streaks along the legs); a soft occlusion towards the outline
     # makes the legs look round.
-    depth = cv2.distanceTransform((coverage > 0.5).astype(np.uint8), cv2.DIST_L2, 3)
+    depth = cv2.distanceTransform(np.greater(coverage, 0.5).view(np.uint8), cv2.DIST_L2, 3)
     period = max(3.0, unit / 170.0)
     blotches = _FrameNoise(rng, layout, shape, 0.12 * unit, 0.2 * unit)
     slubs = _FrameNoise(rng, layout, shape, 1.3 * period, 25 * period)
     wobble = _FrameNoise(rng, layout, shape, 4 * period, 4 * period)
-    wear = details.wear
-    wear += 0.15 + 0.32 * _smoothstep(depth * np.float32(1.0 / (0.16 * unit)))
-    light = details.dark
-    light *= 0.7 + 0.3 * _smoothstep(depth * np.float32(1.0 / (0.07 * unit)))
-    del depth
-    light *= _photo_shading(image, box, weight, unit)
+    shading = _photo_shading(image, box, weight, unit)
+    to_wear, to_occlusion = np.float32(1.0 / (0.16 * unit)), np.float32(1.0 / (0.07 * unit))
 
-    out = np.empty((h, w, 3), np.float32)
     cx = (np.arange(w, dtype=np.float32) + 0.5)[None, :]
     scale = np.float32(2 * np.pi / period)
+    across, down = layout.across.astype(np.float32), layout.down.astype(np.float32)
     for strip, top in enumerate(range(0, h, _TEXTURE_ROWS)):
-        rows = slice(top, min(top + _TEXTURE_ROWS, h))
-        cy = (np.arange(rows.start, rows.stop, dtype=np.float32) + 0.5)[:, None]
-        along = cx * np.float32(layout.across[0]) + cy * np.float32(layout.across[1])
-        downs = cx * np.float32(layout.down[0]) + cy * np.float32(layout.down[1])
-        # 2/1 twill: ridges at 45 degrees to the garment axes, rising to the right as
-        # on right-hand twill (mirrored on the cross-grain waistband), wobbling like
-        # real yarn; sharpened from a sine into flat-topped ridges in [0, 1].
-        phase = along + downs * (1.0 - 2.0 * details.flip[rows])
-        twill = np.sin(phase * scale + np.float32(0.35) * wobble.rows(rows.start, rows.stop))
-        twill = _smoothstep(0.5 + 0.9 * twill)
-        fade = np.clip(
-            wear[rows] + 0.12 * blotches.rows(rows.start, rows.stop) + 0.06 * slubs.rows(rows.start, rows.stop),
-            0.0, 1.0,
-        )
+        boxes = _windows(needed[top : top + _TEXTURE_ROWS], top)
+        if not boxes:
+            continue
+        # The strip's noise, drawn only as far right and down as it is needed (the
+        # grain's blur reaches 2 rows further).
+        bottom = max(rows.stop for rows, _ in boxes)
+        right = max(cols.stop for _, cols in boxes)
+        strip_wobble = wobble.rows(top, bottom, right)
+        strip_blotches = blotches.rows(top, bottom, right)
+        strip_slubs = slubs.rows(top, bottom, right)
         strip_rng = np.random.default_rng([seed, strip])
-        grain = 1.0 + 0.07 * _blur(strip_rng.standard_normal(fade.shape, dtype=np.float32), 0.5)
-        weft = (0.1 + 0.22 * fade) * twill
-        thread = details.thread[rows]
-        for c in range(3):
-            base = _INDIGO_DEEP[c] + (_INDIGO_WORN[c] - _INDIGO_DEEP[c]) * fade
-            base *= 0.82 + 0.3 * twill
-            base += weft * (_WEFT[c] - base)
-            base *= grain
-            base += thread * (_THREAD[c] * (0.75 + 0.3 * twill) - base)
-            base *= light[rows]
-            out[rows, :, c] = base
-    _paint_metal(out, details.metal, light)
+        grain_rows = min(bottom + 2, top + _TEXTURE_ROWS, h) - top
+        strip_grain = _blur(strip_rng.standard_normal((grain_rows, w), dtype=np.float32), 0.5)
+        for rows, cols in boxes:
+            local = slice(rows.start - top, rows.stop - top)
+            cy = (np.arange(rows.start, rows.stop, dtype=np.float32) + 0.5)[:, None]
+            x = cx[:, cols]
+            # The arithmetic below runs in place but keeps the float32 operations and
+            # their order as written in the comments, so the bytes do not depend on
+            # the windows; a layer with no ink here is skipped (x * 1, x + 0).
+            # 2/1 twill: ridges at 45 degrees to the garment axes, rising to the right
+            # as on right-hand twill (mirrored where ``flip``: on the cross-grain
+            # waistband), wobbling like real yarn; sharpened from a sine into
+            # flat-topped ridges in [0, 1]:
+            # smoothstep(0.5 + 0.9 * sin((along + downs * (1 - 2 flip)) * scale + 0.35 wobble)).
+            twill = x * down[0] + cy * down[1]
+            flip = details.flip.window(rows, cols)
+            if flip is not None:
+                twill *= 1.0 - 2.0 * flip
+            twill += x * across[0] + cy * across[1]
+            twill *= scale
+            twill += np.float32(0.35) * strip_wobble[local, cols]
+            np.sin(twill, out=twill)
+            twill *= 0.9
+            twill += 0.5
+            twill = _smoothstep(twill)
+            # clip(wear + (0.15 + 0.32 * smoothstep(depth / (0.16 unit))) + 0.12 blotches
+            # + 0.06 slubs, 0, 1), the wear mapped to the indigo's fading.
+            fade = 0.15 + 0.32 * _smoothstep(depth[rows, cols] * to_wear)
+            wear = details.wear.window(rows, cols)
+            if wear is not None:
+                fade += wear
+            fade += 0.12 * strip_blotches[local, cols]
+            fade += 0.06 * strip_slubs[local, cols]
+            np.clip(fade, 0.0, 1.0, out=fade)
+            grain = 0.07 * strip_grain[local, cols]
+            grain += 1.0
+            weft = 0.22 * fade
+            weft += 0.1
+            weft *= twill  # (0.1 + 0.22 * fade) * twill
+            thread = details.thread.window(rows, cols)
+            # dark * (0.7 + 0.3 * smoothstep(depth / (0.07 unit))) * shading: construction
+            # shadows, occlusion, the photo's folds.
+            light = details.dark(rows, cols)
+            light *= 0.7 + 0.3 * _smoothstep(depth[rows, cols] * to_occlusion)
+            light *= shading(rows, cols)
+            ridge = 0.3 * twill
+            weave = ridge + 0.82
+            ridge += 0.75
+            colour = np.empty((3, *fade.shape), np.float32)
+            base, mix = np.empty_like(fade), np.empty_like(fade)
+            for c in range(3):
+                # base = (deep + (worn - deep) * fade) * (0.82 + 0.3 twill), darker in
+                # the twill's valleys; base += weft * (WEFT - base), the weft showing;
+                # base *= grain; base += thread * (THREAD * (0.75 + 0.3 twill) - base);
+                # colour = base * light.
+                np.multiply(fade, _INDIGO_WORN[c] - _INDIGO_DEEP[c], out=base)
+                base += _INDIGO_DEEP[c]
+                base *= weave
+                np.subtract(_WEFT[c], base, out=mix)
+                mix *= weft
+                base += mix
+                base *= grain
+                if thread is not None:
+                    np.multiply(ridge, _THREAD[c], out=mix)
+                    mix -= base
+                    mix *= thread
+                    base += mix
+                np.multiply(base, light, out=colour[c])
+            _paint_metal(colour, light, rows, cols, details.metal)
+            yield rows, cols, colour
+
+
+def _render_denim(
+    image: np.ndarray, box: tuple[int, int, int, int], layout: _Layout, coverage: np.ndarray,
+    weight: np.ndarray, garment: Garment, seed: int,
+) -> np.ndarray:
+    """Denim colour ``(h, w, 3) float32`` (0..255) over the whole patch ``box`` of
+    ``image`` (see :func:`_denim_windows`)."""
+    out = np.empty((*coverage.shape, 3), np.float32)
+    everywhere = np.broadcast_to(np.True_, coverage.shape)  # no memory
+    for rows, cols, colour in _denim_windows(image, box, layout, coverage, weight, garment, seed, everywhere):
+        out[rows, cols] = np.moveaxis(colour, 0, -1)
     return out
 
 
-def _paint_metal(out: np.ndarray, metal: list, light: np.ndarray) -> None:
-    """Domed brass button and copper rivets, lit from the top left, each in its own window."""
-    h, w = out.shape[:2]
+def _paint_metal(colour: np.ndarray, light: np.ndarray, rows: slice, cols: slice, metal: list) -> None:
+    """Domed brass button and copper rivets, lit from the top left, painted onto the
+    ``(3, m, n)`` colour planes of the patch window ``(rows, cols)``, whose cloth
+    lighting is ``light`` ``(m, n)``. Each is drawn only where its own box meets the window."""
     for centre, radius, rgb in metal:
         r = radius * 1.6
-        c0, c1 = max(int(centre[0] - r), 0), min(int(np.ceil(centre[0] + r)) + 1, w)
-        r0, r1 = max(int(centre[1] - r), 0), min(int(np.ceil(centre[1] + r)) + 1, h)
+        c0, c1 = max(int(centre[0] - r), cols.start), min(int(np.ceil(centre[0] + r)) + 1, cols.stop)
+        r0, r1 = max(int(centre[1] - r), rows.start), min(int(np.ceil(centre[1] + r)) + 1, rows.stop)
         if c1 <= c0 or r1 <= r0:
             continue
         dx = (np.arange(c0, c1, dtype=np.float32) + 0.5 - centre[0])[None, :] / radius
@@ -579,11 +744,12 @@ def _paint_metal(out: np.ndarray, metal: list, light: np.ndarray) -> None:
         lit = np.clip(0.5 + 0.6 * (-0.5 * dx - 0.6 * dy + 0.6 * nz), 0.25, 1.4)
         spec = np.clip(1 - np.sqrt((dx + 0.35) ** 2 + (dy + 0.4) ** 2) / 0.35, 0, 1) ** 2
         rim = np.clip((dist - 0.72) / 0.28, 0, 1)
-        window = out[r0:r1, c0:c1]
+        inside = (slice(r0 - rows.start, r1 - rows.start), slice(c0 - cols.start, c1 - cols.start))
+        window = np.moveaxis(colour[:, inside[0], inside[1]], 0, -1)
         window *= (1 - 0.5 * shadow)[..., None]
-        colour = rgb * (lit * (1 - 0.45 * rim))[..., None] + 255 * spec[..., None] * 0.7
-        colour *= np.sqrt(light[r0:r1, c0:c1])[..., None]
-        window += disc[..., None] * (colour - window)
+        paint = rgb * (lit * (1 - 0.45 * rim))[..., None] + 255 * spec[..., None] * 0.7
+        paint *= np.sqrt(light[inside])[..., None]
+        window += disc[..., None] * (paint - window)
 
 
 # --------------------------------------------------------------------------- public API
@@ -601,7 +767,8 @@ def _check_image(image: np.ndarray) -> np.ndarray:
 
 
 def _clip_weight(image: np.ndarray, mask: np.ndarray | None, box: tuple[int, int, int, int]) -> np.ndarray | None:
-    """The object's coverage ``(h, w) float32`` over the patch, or None for no clipping.
+    """The object's coverage ``(h, w) float32`` over the patch (a new array, which callers
+    may scale in place), or None for no clipping.
 
     A float mask is taken as alpha; a boolean one is softened over about one pixel, so
     its staircase edge does not show on the jeans' outline.
@@ -622,7 +789,7 @@ def _clip_weight(image: np.ndarray, mask: np.ndarray | None, box: tuple[int, int
         return np.ascontiguousarray(crop[y0 - top : y1 - top, x0 - left : x1 - left])
     if not np.issubdtype(mask.dtype, np.number):
         raise JeansError(f"mask must be boolean or numeric, got {mask.dtype}")
-    crop = mask[y0:y1, x0:x1].astype(np.float32)
+    crop = mask[y0:y1, x0:x1].astype(np.float32, copy=False)  # clipped into a new array below
     if mask.dtype == np.uint8:
         crop /= 255.0
     if not np.all(np.isfinite(crop)):
@@ -630,16 +797,20 @@ def _clip_weight(image: np.ndarray, mask: np.ndarray | None, box: tuple[int, int
     return np.clip(crop, 0.0, 1.0)
 
 
-def _paint_over(patch: np.ndarray, colour: np.ndarray, alpha: np.ndarray) -> None:
-    """Composite ``colour`` (``(h, w, 3)`` float32, or broadcastable) over the uint8
-    ``patch`` (RGB or RGBA, in place) with ``alpha`` ``(h, w)``; "over" on RGBA.
+def _painted(alpha: np.ndarray) -> np.ndarray:
+    """Where paint of ``alpha`` ``(h, w)`` shows: below half a level it changes no byte of
+    an opaque pixel, and skipping it keeps float dust from the coverage's sums off the
+    untouched pixels."""
+    return alpha > 0.5 / 255
 
-    One channel at a time and only where the paint shows, so untouched pixels keep
-    their bytes and a huge patch needs a few float planes, not float images.
+
+def _paint_over(patch: np.ndarray, colour: np.ndarray, alpha: np.ndarray, painted: np.ndarray) -> None:
+    """Composite ``colour`` (``(3, h, w)`` float32 planes, or one ``(3,)`` colour) over
+    the uint8 ``patch`` (RGB or RGBA, in place) with ``alpha`` ``(h, w)``; "over" on RGBA.
+
+    One channel at a time and only where the paint shows (``painted``, from
+    :func:`_painted`), so untouched pixels keep their bytes.
     """
-    # Paint below half a level changes no byte of an opaque pixel; skipping it keeps
-    # float dust from the coverage's sums off the untouched pixels.
-    painted = alpha > 0.5 / 255
     if patch.shape[2] == 4:
         below = patch[..., 3].astype(np.float32) * np.float32(1 / 255)
         below *= 1.0 - alpha  # the photo's share of the result
@@ -649,13 +820,21 @@ def _paint_over(patch: np.ndarray, colour: np.ndarray, alpha: np.ndarray) -> Non
     for c in range(3):
         src = patch[..., c].astype(np.float32)
         if patch.shape[2] == 4:
-            mixed = (colour[..., c] * alpha + src * below) / safe_over
+            mixed = (colour[c] * alpha + src * below) / safe_over
         else:
-            mixed = colour[..., c] - src
+            mixed = colour[c] - src
             mixed *= alpha
             mixed += src
         np.clip(np.rint(mixed, out=mixed), 0, 255, out=mixed)
         np.copyto(patch[..., c], mixed, casting="unsafe", where=painted)
+
+
+def _paint_windows(patch: np.ndarray, colour: np.ndarray, alpha: np.ndarray, painted: np.ndarray) -> None:
+    """:func:`_paint_over` window by window (:func:`_windows` of ``painted``), so a huge
+    patch needs no float images; ``colour`` is ``(3, h, w)`` planes or one ``(3,)`` colour."""
+    for rows, cols in _windows(painted):
+        window = colour[:, rows, cols] if colour.ndim == 3 else colour
+        _paint_over(patch[rows, cols], window, alpha[rows, cols], painted[rows, cols])
 
 
 def composite_jeans(
@@ -703,16 +882,19 @@ def composite_jeans(
         return out
     coverage = polygon_coverage_patch(local, y1 - y0, x1 - x0)
     weight = _clip_weight(image, mask, box) if clip else None
-    alpha = coverage if weight is None else coverage * weight
-    if not np.any(alpha > 0.5 / 255):
+    alpha = coverage if weight is None else np.multiply(weight, coverage, out=weight)
+    painted = _painted(alpha)
+    if not painted.any():
         return out
 
+    patch = out[y0:y1, x0:x1]
     if style == "flat":
-        jeans = np.broadcast_to(np.array(garment.extra.get("colour", FLAT_BLUE), np.float32), (*alpha.shape, 3))
-    else:
-        jeans = _render_denim(image, box, _layout(local, garment), coverage, alpha, garment, seed)
-
-    _paint_over(out[y0:y1, x0:x1], jeans, alpha)
+        _paint_windows(patch, np.array(garment.extra.get("colour", FLAT_BLUE), np.float32), alpha, painted)
+        return out
+    # Each window of denim is painted as soon as it is made, while it is in cache.
+    denim = _denim_windows(image, box, _layout(local, garment), coverage, alpha, garment, seed, painted)
+    for rows, cols, colour in denim:
+        _paint_over(patch[rows, cols], colour, alpha[rows, cols], painted[rows, cols])
     return out
 
 
@@ -746,7 +928,7 @@ def _composite_large(
     if clip:
         small_weight = _clip_weight(small_image, _resized_mask(mask, box, (small_w, small_h)), (0, 0, small_w, small_h))
         if small_weight is not None:
-            small_alpha = small_coverage * small_weight
+            small_alpha = np.multiply(small_weight, small_coverage, out=small_weight)
     small = _render_denim(
         small_image, (0, 0, small_w, small_h), _layout(small_vertices, garment), small_coverage, small_alpha,
         garment, seed,
@@ -757,8 +939,9 @@ def _composite_large(
         height = strip[3] - strip[1]
         coverage = polygon_coverage_patch(local - np.array([0.0, top]), height, w)
         weight = _clip_weight(image, mask, strip) if clip else None
-        alpha = coverage if weight is None else coverage * weight
-        if not np.any(alpha > 0.5 / 255):
+        alpha = coverage if weight is None else np.multiply(weight, coverage, out=weight)
+        painted = _painted(alpha)
+        if not painted.any():
             continue
         # The strip's rows of the upsampled denim: INTER_LINEAR resize with pixel
         # centres at +0.5, written as the inverse affine map of warpAffine.
@@ -767,7 +950,7 @@ def _composite_large(
             small, to_small, (w, height), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
             borderMode=cv2.BORDER_REPLICATE,
         )
-        _paint_over(out[strip[1] : strip[3], x0:x1], jeans, alpha)
+        _paint_windows(out[strip[1] : strip[3], x0:x1], np.moveaxis(jeans, -1, 0), alpha, painted)
 
 
 def _resized_mask(mask: np.ndarray | None, box: tuple[int, int, int, int], size: tuple[int, int]) -> np.ndarray | None:

@@ -417,3 +417,28 @@ def test_large_garment_boxes_render_reduced_and_paint_in_strips(monkeypatch):
     assert (changed & mask).sum() / changed.sum() >= 0.95
     painted = strips[changed].astype(float)
     assert painted[:, 2].mean() > painted[:, 0].mean() + 15
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+def test_denim_bytes_do_not_depend_on_the_work_windows(monkeypatch, channels: int) -> None:
+    """The per-pixel work runs in windows around the painted pixels; how the box is cut
+    into them (and so how far each strip's noise is drawn) must not change a byte."""
+    import jeanscv.compositing as compositing
+
+    rng = np.random.default_rng(7)
+    height, width = 700, 560  # a box of three noise strips
+    image = (60 + 120 * rng.random((height, width, channels))).astype(np.uint8)
+    if channels == 4:
+        image[..., 3] = (255 * rng.random((height, width)) ** 0.2).astype(np.uint8)
+    yy, xx = np.mgrid[0:height, 0:width] + 0.5
+    # An object narrower than the jeans, with a hole between the legs, so windows
+    # start, stop and split inside the box.
+    mask = ((xx - 280) / 200) ** 2 + ((yy - 350) / 330) ** 2 <= 1.0
+    mask &= ~((np.abs(xx - 280) < 40) & (yy > 420))
+    vertices = jeans_vertices(scale=4.0, centre=(280.0, 350.0))
+    reference = composite_jeans(image, vertices, mask=mask, seed=2)
+    assert changed(reference, image).sum() > 50_000
+    for rows, gap in ((4, 1), (8, 10_000), (256, 128)):
+        monkeypatch.setattr(compositing, "_WINDOW_ROWS", rows)
+        monkeypatch.setattr(compositing, "_WINDOW_GAP", gap)
+        assert np.array_equal(composite_jeans(image, vertices, mask=mask, seed=2), reference)
