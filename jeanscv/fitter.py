@@ -14,7 +14,7 @@ from torch import Tensor
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .loss import PAPER_WEIGHTS, TERM_NAMES, jalgorithm_terms, weighted_total
+from .loss import PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES, jalgorithm_terms, weighted_total
 from .presets import Preset, get_preset
 
 # (scale, rotation in degrees) of the starts after the paper's own initialisation,
@@ -118,6 +118,23 @@ def _blurred(silhouette: Tensor, sigma: float) -> Tensor:
     )[0, 0]
 
 
+def _area_downsampled(silhouette: Tensor, factor: int) -> Tensor:
+    """``S`` averaged over ``factor x factor`` blocks (exact area coverage at the coarser grid)."""
+    if factor == 1:
+        return silhouette
+    return torch.nn.functional.avg_pool2d(silhouette[None, None], factor)[0, 0]
+
+
+def _screen_factor(preset: Preset) -> int:
+    """How much coarser than the canvas the screening iterations run."""
+    if not preset.screen_canvas:
+        return 1
+    factor = CANVAS_SIZE // preset.screen_canvas
+    if factor < 1 or factor * preset.screen_canvas != CANVAS_SIZE:
+        raise JeansError(f"screen_canvas must divide {CANVAS_SIZE}, got {preset.screen_canvas}")
+    return factor
+
+
 def as_silhouette_tensor(silhouette: np.ndarray | Tensor, device: str = "cpu") -> Tensor:
     """Validate ``S`` and return it as a float32 ``(256, 256)`` tensor."""
     s = torch.as_tensor(np.asarray(silhouette) if not isinstance(silhouette, Tensor) else silhouette)
@@ -183,6 +200,23 @@ def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, 
     return min(range(len(totals)), key=key)
 
 
+def _survivors(objectives: np.ndarray, postures: list[int], preset: Preset) -> np.ndarray:
+    """Sorted indices of the ``preset.keep`` starts that go on after pruning.
+
+    By objective; with ``select="rules"`` the best start of the most upright posture
+    present is always among them, since the final choice prefers upright jeans and
+    early objectives often favour upside-down ones.
+    """
+    order = list(np.argsort(objectives, kind="stable"))
+    if preset.select == "rules":
+        finite = [i for i in order if np.isfinite(objectives[i])]
+        if finite:
+            upright = min(finite, key=lambda i: postures[i])  # stable: the best of that posture
+            order.remove(upright)
+            order.insert(0, upright)
+    return np.sort(np.asarray(order[: preset.keep], dtype=np.int64))
+
+
 @contextmanager
 def _torch_threads(count: int | None):
     """Run with ``count`` torch threads: the fit's tensors are small, and on a few cores
@@ -245,16 +279,22 @@ def _fit(
     prune_step = int(iterations * preset.prune_fraction) if preset.keep and preset.keep < num_starts else -1
 
     def objective(pixels: Tensor, target: Tensor) -> tuple[Tensor, dict[str, Tensor]]:
-        terms = jalgorithm_terms(pixels, target, garment, preset.inter_pairs)
+        half_width = STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
+        terms = jalgorithm_terms(pixels, target, garment, preset.inter_pairs, half_width)
         return weighted_total(terms, preset.weights), terms
 
+    screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
     sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
-    blurred_cache: dict[float, Tensor] = {}
+    target_cache: dict[tuple[float, int], Tensor] = {}
     for step, sigma in enumerate(sigma_per_iteration):
-        if sigma not in blurred_cache:
-            blurred_cache[sigma] = _blurred(s, sigma)
+        # Screening runs on a coarser canvas: which starts are promising shows there
+        # at a fraction of the cost, and the normalised vertices carry over as they are.
+        factor = screen_factor if step <= prune_step else 1
+        if (sigma, factor) not in target_cache:
+            target_cache[sigma, factor] = _area_downsampled(_blurred(s, sigma), factor)
+        target = target_cache[sigma, factor]
         params = optimizer.params.detach().requires_grad_(True)
-        total, _ = objective(params * CANVAS_SIZE, blurred_cache[sigma])
+        total, _ = objective(params * target.shape[-1], target)
         if not torch.isfinite(total).any():
             raise JeansError("the fit diverged (non-finite loss)")
         # Diverged starts must not poison the others: drop their gradient.
@@ -265,9 +305,10 @@ def _fit(
         path[step + 1, active] = (optimizer.params * CANVAS_SIZE).cpu().numpy()
         if step == prune_step:
             # Successive halving: keep optimising only the most promising starts.
-            order = np.argsort(history[step, active], kind="stable")[: preset.keep]
-            optimizer.keep(torch.as_tensor(np.sort(order), device=device))
-            active = active[np.sort(order)]
+            postures = [posture(v, garment) for v in path[step + 1, active]]
+            order = _survivors(history[step, active], postures, preset)
+            optimizer.keep(torch.as_tensor(order, device=device))
+            active = active[order]
 
     with torch.no_grad():
         final = optimizer.params * CANVAS_SIZE

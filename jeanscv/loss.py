@@ -223,6 +223,7 @@ def jalgorithm_terms(
     silhouette: Tensor,
     garment: Garment = JEANS,
     inter_pairs: str = "all",
+    stroke_half_width: float = STROKE_HALF_WIDTH,
 ) -> dict[str, Tensor]:
     """The seven terms of the paper's loss, unweighted, one value per candidate.
 
@@ -233,6 +234,8 @@ def jalgorithm_terms(
         garment: which edges are open, the waist pair and the rigid template.
         inter_pairs: ``"all"`` (the paper: every pair of edges) or ``"non_adjacent"``
             (pairs that share no vertex).
+        stroke_half_width: half the width of the strokes ``R(e)`` in pixels of
+            ``silhouette`` (the paper's 2.5 on its 256-px canvas).
 
     Returns:
         ``{name: (B,) tensor}`` for ``center, coverage, rigid, open, closed, inter,
@@ -263,7 +266,7 @@ def jalgorithm_terms(
         fill_size=(window.height, window.width),
         strokes=(start.reshape(-1, 2), end.reshape(-1, 2)),
         canvas_size=tuple(silhouette.shape[-2:]),
-        half_width=STROKE_HALF_WIDTH,
+        half_width=stroke_half_width,
     )
     fill = coverage_from_winding(winding)
     fill_area = fill.sum(dim=(-2, -1))

@@ -19,6 +19,8 @@ class Preset:
     None uses the fitter's default list.
     ``keep``: after ``prune_fraction`` of the iterations only the ``keep`` starts with
     the lowest objective go on (successive halving); None keeps all.
+    ``screen_canvas``: canvas side (pixels, dividing 256) of the iterations up to the
+    pruning: ``S`` is area-averaged to it and the strokes thinned to match; None: 256.
     ``select``: how the winning start is chosen: ``"objective"`` (lowest) or
     ``"rules"`` (fewest failed rule checks, then upright before lying before upside
     down, then lowest objective).
@@ -34,6 +36,7 @@ class Preset:
     keep: int | None = None
     prune_fraction: float = 0.25
     placements: tuple[tuple[float, float], ...] | None = None
+    screen_canvas: int | None = None
     description: str = ""
     extra: dict = field(default_factory=dict)
 
@@ -58,6 +61,7 @@ PRESETS: dict[str, Preset] = {
         starts=12,
         keep=2,
         prune_fraction=0.1,
+        screen_canvas=128,
         select="rules",
         description=(
             "Designed to satisfy the paper's four rules: L_inter counts only edge pairs that "

@@ -196,3 +196,32 @@ def test_a_blur_schedule_runs_coarse_to_fine_with_kornia(zoo):
     smooth = dataclasses.replace(get_preset("default"), blur_sigmas=(4.0, 2.0))
     result = fit(zoo["blob_a"], smooth, iterations=60)
     assert rule_report(result.vertices, zoo["blob_a"]).passed
+
+
+def test_screening_canvas_must_divide_the_canvas(zoo):
+    import dataclasses
+
+    from jeanscv.presets import get_preset
+
+    odd = dataclasses.replace(get_preset("default"), screen_canvas=100)
+    with pytest.raises(JeansError, match="screen_canvas"):
+        fit(zoo["disc"], odd, iterations=5)
+
+
+def test_pruning_keeps_the_best_upright_start_for_rule_selection():
+    import dataclasses
+
+    from jeanscv.fitter import _survivors
+    from jeanscv.presets import get_preset
+
+    rules = dataclasses.replace(get_preset("default"), keep=2)
+    objective = dataclasses.replace(rules, select="objective")
+    objectives = np.array([3.0, 1.0, 2.0, 0.0, 2.5])
+    postures = [1, 2, 1, 2, 0]
+    assert _survivors(objectives, postures, objective).tolist() == [1, 3]
+    # Start 4 is the only upright one: it goes on, with the lowest objective (3).
+    assert _survivors(objectives, postures, rules).tolist() == [3, 4]
+    # No upright start: the best lying one (2) goes on with the overall best.
+    assert _survivors(objectives, [1, 2, 1, 2, 2], rules).tolist() == [2, 3]
+    # A diverged start never counts as the upright one.
+    assert _survivors(np.array([np.nan, 1.0, 0.5]), [0, 1, 2], rules).tolist() == [1, 2]

@@ -392,3 +392,19 @@ def test_degenerate_candidates_give_finite_terms_and_gradients(name: str, dtype:
         assert terms["coverage"].item() == pytest.approx(0.25, abs=1e-6)
         assert terms["open"].item() == 0.0 and terms["closed"].item() == 0.0 and terms["inter"].item() == 0.0
         assert terms["inside"].item() == 0.0
+
+
+@pytest.mark.parametrize("name", ["person", "spider"])
+def test_terms_on_a_twice_coarser_canvas_with_half_width_strokes_agree(zoo, name: str) -> None:
+    """The fitter screens starts on a 128-px canvas: the terms are ratios of areas in
+    normalised coordinates, so they barely change with resolution."""
+    silhouette = _t(zoo[name])
+    vertices = _t(JEANS.template)[None] * 0.7 + 38.0
+    full = jalgorithm_terms(vertices, silhouette, inter_pairs="non_adjacent")
+    coarse_s = torch.nn.functional.avg_pool2d(silhouette[None, None], 2)[0, 0]
+    coarse = jalgorithm_terms(vertices / 2, coarse_s, inter_pairs="non_adjacent", stroke_half_width=1.25)
+    for term in ("center", "rigid"):
+        assert float(coarse[term]) == pytest.approx(float(full[term]), rel=1e-9, abs=1e-12), term
+    for term in ("coverage", "open", "closed", "inside"):
+        assert float(coarse[term]) == pytest.approx(float(full[term]), abs=0.01), term
+    assert float(coarse["inter"]) == pytest.approx(float(full["inter"]), abs=0.003)

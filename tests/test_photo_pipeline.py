@@ -46,8 +46,9 @@ def test_composite_stays_on_the_object_and_looks_like_denim(tmp_path):
     assert changed.sum() > 0.1 * mask.sum()
     assert (changed & mask).sum() / changed.sum() >= 0.95
     painted = result.image[changed].astype(float)
-    blue, red = painted[:, 2].mean(), painted[:, 0].mean()
-    assert blue > red + 15  # indigo, on a brown object
+    # Indigo on a brown object: the median, since golden stitching and seams (a large
+    # share of small jeans) pull the mean towards red.
+    assert np.median(painted[:, 2] - painted[:, 0]) > 25
     assert painted.mean(axis=-1).std() > 8  # textured, not one flat colour
 
 
