@@ -239,11 +239,13 @@ def _to_rgb8(img: Image.Image) -> np.ndarray:
         grey = np.clip(np.nan_to_num(np.asarray(img, dtype=np.float64)), 0.0, 1.0)
         return np.repeat(np.round(grey * 255.0).astype(np.uint8)[..., None], 3, axis=2)
     has_alpha = mode in ("RGBA", "LA", "PA", "RGBa", "La") or "transparency" in img.info
+    target = "RGBA" if has_alpha else "RGB"
     try:
-        converted = img.convert("RGBA" if has_alpha else "RGB")
+        # convert() copies even to the same mode: 36 MB more for a 12-MP photo.
+        converted = img if mode == target else img.convert(target)
     except ValueError as exc:
         raise JeansError(f"unsupported colour mode {mode}") from exc
-    return np.asarray(converted, dtype=np.uint8).copy()
+    return np.array(converted, dtype=np.uint8)
 
 
 def _scale_16_to_8(values: np.ndarray) -> np.ndarray:
