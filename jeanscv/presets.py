@@ -18,7 +18,8 @@ class Preset:
     ``placements``: ``(scale, degrees)`` of starts 1.. (start 0 is the template);
     None uses the fitter's default list.
     ``keep``: after ``prune_fraction`` of the iterations only the ``keep`` starts with
-    the lowest objective go on (successive halving); None keeps all.
+    the lowest objective go on (successive halving), with ``select="rules"`` always
+    including the best start of the most upright posture; None keeps all.
     ``screen_canvas``: canvas side (pixels, dividing 256) of the iterations up to the
     pruning: ``S`` is area-averaged to it and the strokes thinned to match; None: 256.
     ``select``: how the winning start is chosen: ``"objective"`` (lowest) or
