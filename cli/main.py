@@ -260,8 +260,9 @@ def _restore_sigterm(previous) -> None:
 
 
 def _run_serial(pending, options, progress, outcomes) -> None:
-    from .worker import process
+    from .worker import process, reuse_freed_memory
 
+    reuse_freed_memory()
     for job in pending:
         progress.start(job.display)
         outcome = process(job, options)

@@ -237,12 +237,43 @@ def _worker_sigterm(signum, frame) -> None:
     os._exit(128 + signum)  # idle: nothing to clean up, and no traceback to print
 
 
+# glibc mallopt parameters (malloc.h).
+_M_TRIM_THRESHOLD, _M_MMAP_MAX = -1, -4
+
+
+def reuse_freed_memory() -> bool:
+    """Keep freed memory in the process heap for the next file (glibc only).
+
+    Every photo allocates and frees dozens of 10-100 MB arrays. By default glibc maps
+    each from fresh pages and unmaps it on free, so the kernel zeroes every page again
+    on first touch: on 12-MP photos with ``-j 2`` that was 10% of the CPU time, all of
+    it system time. Serving them from a heap that is never trimmed lets the next
+    photo reuse the same pages. Peak memory is unchanged: the heap only holds what
+    the largest photo needed. Returns whether the setting took effect.
+    """
+    import ctypes
+    import platform
+
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return False
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        return bool(libc.mallopt(_M_MMAP_MAX, 0)) and bool(libc.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1))
+    except (OSError, AttributeError):
+        return False
+
+
 def init_worker(threads: int) -> None:
     """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on SIGTERM."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
+    reuse_freed_memory()
+    import cv2
     import torch
 
+    # OpenCV sizes its thread pool to every core too: N workers would each run
+    # N-core OpenCV calls and oversubscribe the machine.
+    cv2.setNumThreads(max(1, threads))
     torch.set_num_threads(max(1, threads))
 
 

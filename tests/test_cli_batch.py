@@ -173,3 +173,40 @@ def test_interrupt_keeps_finished_outputs_and_no_partial_files(tmp_path, sig, co
         with Image.open(path) as im:
             assert im.size == (256, 256)
             assert np.asarray(im).shape == (256, 256, 3)  # decodes completely
+
+
+# A worker's setup, run in a fresh interpreter: it changes process-wide settings.
+_WORKER_SETUP = """
+import os, sys
+import numpy as np
+from jeanscv_cli.worker import init_worker
+
+def resident_mb():
+    return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+def kept_after_free():
+    block = np.ones(64 * 2**20, np.uint8)  # 64 MB, every page touched
+    before = resident_mb()
+    del block
+    return before - resident_mb() < 8  # still resident after the free
+
+default = kept_after_free()
+init_worker(int(sys.argv[1]))
+import cv2, torch
+print(default, kept_after_free(), cv2.getNumThreads(), torch.get_num_threads())
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc heap setting and /proc are Linux only")
+def test_worker_setup_shares_cores_and_keeps_freed_memory():
+    done = subprocess.run(
+        [sys.executable, "-c", "import jeanscv.__main__\n" + _WORKER_SETUP, "1"],
+        capture_output=True, text=True, env=_env(), timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    default, kept, cv2_threads, torch_threads = done.stdout.split()
+    # OpenCV and torch each get the worker's share of the cores, not all of them.
+    assert (cv2_threads, torch_threads) == ("1", "1")
+    # By default a freed 64-MB array goes back to the system (and its pages are zeroed
+    # again when the next photo needs them); a worker keeps it for the next file.
+    assert (default, kept) == ("False", "True")
