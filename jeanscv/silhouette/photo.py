@@ -46,6 +46,7 @@ _KEEP_FRACTION = 0.25  # extra components kept if at least this fraction of the 
 _MORPH_FRACTION = 0.01  # open/close radius as a fraction of sqrt(object area)
 _BORDER_FULL = 0.5  # a border counts as covered when this fraction of it is object
 _BLUR_MARGIN = 0.02  # texture-blurred thresholds must beat sharp ones by this score
+_CONTRAST_SIGMA = 2.0  # neighbourhood (coarse pixels) on which boundary contrast is judged
 
 
 @dataclass
@@ -240,7 +241,30 @@ def _saliency(rgb: np.ndarray) -> np.ndarray:
     return saliency / (float(saliency.max()) + 1e-6)
 
 
-def _local_contrast(lab: np.ndarray, mask: np.ndarray, sigma: float = 2.0, floor: float = 4.0) -> float:
+@dataclass
+class _LabMoments:
+    """A Lab image (float32), its square, and both Gaussian-blurred: what
+    :func:`_local_contrast` needs that does not depend on the mask."""
+
+    image: np.ndarray
+    square: np.ndarray
+    blurred: np.ndarray
+    blurred_square: np.ndarray
+
+    @classmethod
+    def of(cls, lab: np.ndarray, sigma: float) -> _LabMoments:
+        image = lab.astype(np.float32)
+        square = image * image
+        return cls(image, square, cv2.GaussianBlur(image, (0, 0), sigma), cv2.GaussianBlur(square, (0, 0), sigma))
+
+
+def _local_contrast(
+    lab: np.ndarray,
+    mask: np.ndarray,
+    sigma: float = _CONTRAST_SIGMA,
+    floor: float = 4.0,
+    moments: _LabMoments | None = None,
+) -> float:
     """How well the boundary of ``mask`` separates locally different colours, in [0, 1].
 
     At every boundary pixel (either side), the Gaussian-weighted (``sigma``) mean Lab
@@ -248,21 +272,30 @@ def _local_contrast(lab: np.ndarray, mask: np.ndarray, sigma: float = 2.0, floor
     their pooled local standard deviation (at least ``floor``): z = |mean_in -
     mean_out| / std. Returns the mean of min(z, 3) / 3: near 1 where the boundary sits on
     real colour edges, low where it cuts through a uniform or textured region.
+    ``moments``: ``_LabMoments.of(lab, sigma)``, when the caller scores many masks.
     """
-    inside = mask.astype(np.float32)
-    image = lab.astype(np.float32)
-    moments = []
-    for weight in (inside, 1.0 - inside):
-        total = cv2.GaussianBlur(weight, (0, 0), sigma)[..., None] + 1e-6
-        mean = cv2.GaussianBlur(image * weight[..., None], (0, 0), sigma) / total
-        square = cv2.GaussianBlur(image * image * weight[..., None], (0, 0), sigma) / total
-        moments.append((mean, np.clip(square - mean**2, 0, None)))
-    (mean_in, var_in), (mean_out, var_out) = moments
+    moments = _LabMoments.of(lab, sigma) if moments is None else moments
     eight = mask.astype(np.uint8)
     boundary = cv2.dilate(eight, _disk(1)) > cv2.erode(eight, _disk(1))
-    difference = np.sqrt(((mean_in - mean_out) ** 2).sum(axis=2))[boundary]
-    spread = np.sqrt((0.5 * (var_in + var_out)).sum(axis=2) + floor**2)[boundary]
-    return float(np.minimum(difference / spread, 3.0).mean() / 3.0) if boundary.any() else 0.0
+    if not boundary.any():
+        return 0.0
+    inside = mask.astype(np.float32)
+    # The blur is linear, so the outside sums are the unweighted ones less the inside
+    # ones; and only boundary pixels are compared, so only they are divided out.
+    weight_in = cv2.GaussianBlur(inside, (0, 0), sigma)[boundary][:, None]
+    sum_in = cv2.GaussianBlur(moments.image * inside[..., None], (0, 0), sigma)[boundary]
+    square_in = cv2.GaussianBlur(moments.square * inside[..., None], (0, 0), sigma)[boundary]
+    sides = []
+    for weight, total, square in (
+        (weight_in, sum_in, square_in),
+        (1.0 - weight_in, moments.blurred[boundary] - sum_in, moments.blurred_square[boundary] - square_in),
+    ):
+        mean = total / (weight + 1e-6)
+        sides.append((mean, np.clip(square / (weight + 1e-6) - mean**2, 0, None)))
+    (mean_in, var_in), (mean_out, var_out) = sides
+    difference = np.sqrt(((mean_in - mean_out) ** 2).sum(axis=1))
+    spread = np.sqrt((0.5 * (var_in + var_out)).sum(axis=1) + floor**2)
+    return float(np.minimum(difference / spread, 3.0).mean() / 3.0)
 
 
 class _Scene:
@@ -290,6 +323,7 @@ class _Scene:
             "texture": cv2.GaussianBlur(self.rgb, (0, 0), self.texture_sigma),
         }
         self.labs, self.likelihood, self.unlike, tidiness = {}, {}, {}, {}
+        self.lab_moments: dict[str, _LabMoments] = {}  # filled on first use
         for scale, image in self.images.items():
             lab = cv2.cvtColor(image, cv2.COLOR_RGB2LAB)
             raw = _object_likelihood(lab, self.ring_width)
@@ -337,7 +371,9 @@ class _Scene:
         completeness = hits / max(float(unlike.sum()), 1.0)
         precision = hits / max(float(inside.sum()), 1.0)
         agreement = 2 * completeness * precision / max(completeness + precision, 1e-9)
-        contrast = _local_contrast(self.labs[self.scale], small)
+        if self.scale not in self.lab_moments:
+            self.lab_moments[self.scale] = _LabMoments.of(self.labs[self.scale], _CONTRAST_SIGMA)
+        contrast = _local_contrast(self.labs[self.scale], small, moments=self.lab_moments[self.scale])
         return {
             **result,
             "completeness": round(completeness, 4),
