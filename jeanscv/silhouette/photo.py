@@ -243,48 +243,43 @@ def _saliency(rgb: np.ndarray) -> np.ndarray:
 
 @dataclass
 class _LabMoments:
-    """A Lab image (float32), its square, and both Gaussian-blurred: what
+    """A Lab image (float32), its square, and both Gaussian-blurred by ``sigma``: what
     :func:`_local_contrast` needs that does not depend on the mask."""
 
     image: np.ndarray
     square: np.ndarray
     blurred: np.ndarray
     blurred_square: np.ndarray
+    sigma: float
 
     @classmethod
-    def of(cls, lab: np.ndarray, sigma: float) -> _LabMoments:
+    def of(cls, lab: np.ndarray, sigma: float = _CONTRAST_SIGMA) -> _LabMoments:
         image = lab.astype(np.float32)
         square = image * image
-        return cls(image, square, cv2.GaussianBlur(image, (0, 0), sigma), cv2.GaussianBlur(square, (0, 0), sigma))
+        blur = (0, 0), sigma
+        return cls(image, square, cv2.GaussianBlur(image, *blur), cv2.GaussianBlur(square, *blur), sigma)
 
 
-def _local_contrast(
-    lab: np.ndarray,
-    mask: np.ndarray,
-    sigma: float = _CONTRAST_SIGMA,
-    floor: float = 4.0,
-    moments: _LabMoments | None = None,
-) -> float:
+def _local_contrast(moments: _LabMoments, mask: np.ndarray, floor: float = 4.0) -> float:
     """How well the boundary of ``mask`` separates locally different colours, in [0, 1].
 
-    At every boundary pixel (either side), the Gaussian-weighted (``sigma``) mean Lab
-    colours of the inside and of the outside neighbourhoods are compared, in units of
-    their pooled local standard deviation (at least ``floor``): z = |mean_in -
+    At every boundary pixel (either side), the Gaussian-weighted (``moments.sigma``)
+    mean Lab colours of the inside and of the outside neighbourhoods are compared, in
+    units of their pooled local standard deviation (at least ``floor``): z = |mean_in -
     mean_out| / std. Returns the mean of min(z, 3) / 3: near 1 where the boundary sits on
     real colour edges, low where it cuts through a uniform or textured region.
-    ``moments``: ``_LabMoments.of(lab, sigma)``, when the caller scores many masks.
     """
-    moments = _LabMoments.of(lab, sigma) if moments is None else moments
     eight = mask.astype(np.uint8)
     boundary = cv2.dilate(eight, _disk(1)) > cv2.erode(eight, _disk(1))
     if not boundary.any():
         return 0.0
     inside = mask.astype(np.float32)
+    blur = (0, 0), moments.sigma
     # The blur is linear, so the outside sums are the unweighted ones less the inside
     # ones; and only boundary pixels are compared, so only they are divided out.
-    weight_in = cv2.GaussianBlur(inside, (0, 0), sigma)[boundary][:, None]
-    sum_in = cv2.GaussianBlur(moments.image * inside[..., None], (0, 0), sigma)[boundary]
-    square_in = cv2.GaussianBlur(moments.square * inside[..., None], (0, 0), sigma)[boundary]
+    weight_in = cv2.GaussianBlur(inside, *blur)[boundary][:, None]
+    sum_in = cv2.GaussianBlur(moments.image * inside[..., None], *blur)[boundary]
+    square_in = cv2.GaussianBlur(moments.square * inside[..., None], *blur)[boundary]
     sides = []
     for weight, total, square in (
         (weight_in, sum_in, square_in),
@@ -322,12 +317,11 @@ class _Scene:
             "fine": cv2.GaussianBlur(self.rgb, (0, 0), 1.0),
             "texture": cv2.GaussianBlur(self.rgb, (0, 0), self.texture_sigma),
         }
-        self.labs, self.likelihood, self.unlike, tidiness = {}, {}, {}, {}
-        self.lab_moments: dict[str, _LabMoments] = {}  # filled on first use
+        labs, self.likelihood, self.unlike, tidiness = {}, {}, {}, {}
         for scale, image in self.images.items():
             lab = cv2.cvtColor(image, cv2.COLOR_RGB2LAB)
             raw = _object_likelihood(lab, self.ring_width)
-            self.labs[scale] = lab
+            labs[scale] = lab
             self.likelihood[scale] = cv2.GaussianBlur(raw, (0, 0), 1.0)
             # Cleaned like an object mask: scattered rare background colours (specks,
             # craters) drop out, leaving the main region the border does not explain.
@@ -340,6 +334,8 @@ class _Scene:
         self.tidiness = tidiness
         textured = tidiness["fine"] < 0.65 and tidiness["texture"] > tidiness["fine"] + 0.3
         self.scale = "texture" if textured else "fine"
+        # Every candidate is scored at this scale: blur its moments once.
+        self.contrast_moments = _LabMoments.of(labs[self.scale])
 
     def to_coarse(self, mask: np.ndarray) -> np.ndarray:
         """A working-resolution bool mask at coarse resolution (area coverage >= 0.5)."""
@@ -371,9 +367,7 @@ class _Scene:
         completeness = hits / max(float(unlike.sum()), 1.0)
         precision = hits / max(float(inside.sum()), 1.0)
         agreement = 2 * completeness * precision / max(completeness + precision, 1e-9)
-        if self.scale not in self.lab_moments:
-            self.lab_moments[self.scale] = _LabMoments.of(self.labs[self.scale], _CONTRAST_SIGMA)
-        contrast = _local_contrast(self.labs[self.scale], small, moments=self.lab_moments[self.scale])
+        contrast = _local_contrast(self.contrast_moments, small)
         return {
             **result,
             "completeness": round(completeness, 4),
