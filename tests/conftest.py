@@ -16,6 +16,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "silhouettes"
+#: The paper's seven silhouettes in SHARED (NAME.png, NAME.svg).
+PAPER_SHAPES = ("person", "vitruvian", "dog", "horse", "tripod", "balldragon", "extra_0")
 
 if importlib.util.find_spec("jeanscv") is None:
     sys.path.insert(0, str(ROOT))
@@ -89,3 +91,14 @@ def blue_pixels(image: np.ndarray) -> int:
     """Pixels in the paper's jeans blue (0, 0, 255), allowing for anti-aliasing and JPEG."""
     rgb = np.asarray(image)[..., :3].astype(int)
     return int(np.sum((rgb[..., 2] > 200) & (rgb[..., 0] < 60) & (rgb[..., 1] < 60)))
+
+
+def paper_silhouette(name: str, dtype=np.float32) -> np.ndarray:
+    """The paper's ``NAME.png`` as an alpha in [0, 1]; skips the test when ../shared lacks it."""
+    path = SHARED / f"{name}.png"
+    if not path.is_file():
+        pytest.skip(f"{path} not available")
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image.convert("L"), dtype=dtype) / 255.0

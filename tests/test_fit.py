@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import torch
+from conftest import PAPER_SHAPES, SHARED, paper_silhouette
 from PIL import Image
 
 from jeanscv.checks import rule_report, self_intersects
@@ -17,17 +16,6 @@ from jeanscv.render import polygon_coverage
 from jeanscv.synthetic import ZOO, silhouette_zoo
 
 from reference import loss_terms_ref
-
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
-PAPER_SHAPES = ["person", "vitruvian", "dog", "horse", "tripod", "balldragon", "extra_0"]
-
-
-def paper_silhouette(name: str) -> np.ndarray:
-    path = SHARED / f"{name}.png"
-    if not path.exists():
-        pytest.skip(f"{path} not available")
-    return np.asarray(Image.open(path), dtype=np.float32) / 255.0
-
 
 @pytest.fixture(scope="module")
 def zoo() -> dict[str, np.ndarray]:

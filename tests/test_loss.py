@@ -5,11 +5,10 @@ batching, and the weighted module.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import torch
+from conftest import PAPER_SHAPES, paper_silhouette
 from conftest import float64_tensor as _t
 
 from jeanscv.errors import JeansError
@@ -25,8 +24,6 @@ from jeanscv.synthetic import silhouette_zoo
 
 from reference import loss_terms_ref, rigid_ref
 
-SILHOUETTES = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
-PAPER_SILHOUETTES = ["person", "vitruvian", "dog", "horse", "tripod", "balldragon", "extra_0"]
 TERMS = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
 F64 = torch.float64
 
@@ -205,19 +202,9 @@ def test_affine_residual_operator_is_the_residual_projector() -> None:
 # ---------------------------------------------------------------- against the reference
 
 
-def _paper_silhouette(name: str) -> np.ndarray:
-    path = SILHOUETTES / f"{name}.png"
-    if not path.exists():
-        pytest.skip(f"paper silhouette {name} not available")
-    from PIL import Image
-
-    with Image.open(path) as image:
-        return np.asarray(image.convert("L"), dtype=np.float64) / 255.0
-
-
-@pytest.mark.parametrize("name", PAPER_SILHOUETTES)
+@pytest.mark.parametrize("name", PAPER_SHAPES)
 def test_terms_match_reference_on_paper_silhouettes(name: str) -> None:
-    s = _paper_silhouette(name)
+    s = paper_silhouette(name, np.float64)
     _assert_terms_close(_terms(JEANS.template, s), _reference(JEANS.template, s))
 
 
