@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import platform
 import signal
 import subprocess
 import sys
@@ -197,7 +198,10 @@ print(default, kept_after_free(), cv2.getNumThreads(), torch.get_num_threads())
 """
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc heap setting and /proc are Linux only")
+@pytest.mark.skipif(
+    not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc",
+    reason="the heap setting is glibc's and /proc is Linux's",
+)
 def test_worker_setup_shares_cores_and_keeps_freed_memory():
     done = subprocess.run(
         [sys.executable, "-c", "import jeanscv.__main__\n" + _WORKER_SETUP, "1"],
