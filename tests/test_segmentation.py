@@ -339,3 +339,17 @@ def test_auto_quality_over_the_whole_set(auto_results):
     assert scores.mean() >= 0.94
     methods = {method for _, method, _ in auto_results.values()}
     assert methods == {"threshold", "grabcut"}  # the set exercises both candidates
+
+
+def test_rim_fraction_counts_pixels_in_the_border_band():
+    """On a 20x30 mask the rim is 2 px wide (10% of the short side): of a 4x4 square in
+    the corner, all but the inner 2x2 block lies on it."""
+    from jeanscv.silhouette.masks import rim_fraction
+
+    mask = np.zeros((20, 30), bool)
+    mask[0:4, 0:4] = True  # corner square: rows/cols 0-1 are on the rim
+    assert rim_fraction(mask) == (16 - 4) / 16
+    mask[:] = False
+    mask[8:12, 10:20] = True  # well inside
+    assert rim_fraction(mask) == 0.0
+    assert rim_fraction(np.zeros((20, 30), bool)) == 0.0

@@ -13,13 +13,13 @@ input resolution with linear interpolation and thresholded at 0.5 (a given alpha
 decides the pixels within one working pixel of the boundary at full resolution), so a
 24-MP photo costs about as much as a 640-pixel one (about 1 s, 0.5 GB peak).
 
-How ``auto`` chooses (no alpha, mask or rect given): the border of the image is taken
-as a sample of the background. Candidates are Otsu splits of four channels at two blurs
-and GrabCut seeded where colours are rare on the border (weighted by a spectral-residual
-saliency map), on the image and on a texture-blurred copy. Each is scored by
-``agreement`` (F-measure with the region whose colours the border does not explain) x
-``contrast`` (how strongly its boundary separates locally different colours) x
-``(1 - border contact)``; the best wins, and ``details`` records every score.
+How ``auto`` chooses (no alpha, mask or rect given): six hypotheses are made at coarse
+resolution: the best Otsu split of four channels at two blurs, GrabCut seeded where
+colours are rare on the border (weighted by spectral-residual saliency), GrabCut from
+a centred rectangle, and three GrabCuts seeded by boundary-connectivity saliency on
+superpixels (:mod:`jeanscv.silhouette.saliency`). The one the others agree with most,
+along strong colour edges, wins (:mod:`jeanscv.silhouette.consensus`) and is refined at
+working resolution; ``details`` records every hypothesis's measures and the reason.
 """
 
 from __future__ import annotations
@@ -28,23 +28,41 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from skimage.measure import find_contours
 
 from jeanscv.errors import JeansError
+
+from .masks import (
+    FULL_FRACTION,
+    RIM_ONLY,
+    binarise,
+    border_contact,
+    border_ring,
+    clean,
+    clean_mask,
+    disk,
+    fills_frame,
+    outer_contour,
+    rim_fraction,
+    resize,
+    shape_for,
+)
 
 METHODS = ("auto", "alpha", "threshold", "grabcut", "mask")
 
 _COARSE_SIZE = 320  # long side of GrabCut's first pass (speed: graph cuts are superlinear)
 _COARSE_ITERATIONS = 5  # GrabCut iterations of the first pass
+# auto's hypotheses are cut on a smaller copy with fewer iterations: GrabCut costs about
+# 370 ms at 320 px and 5 iterations on real photos, 190 ms at 240 px and 3, and only the
+# winner needs a sharp boundary (it is refined at working resolution). At 160 px the
+# hypotheses got too coarse to judge (real photos: mean IoU 0.63 at 320, 0.62 at 240,
+# 0.59 at 160; two synthetic photos under 0.9 at 160).
+_HYPOTHESIS_SIZE = 240
+_HYPOTHESIS_ITERATIONS = 3
 # A colour GrabCut scoring this high is not second-guessed by the texture variant,
 # which saves a third of GrabCut's time: on 48 synthetic photos the texture variant
 # only ever won against colour scores under 0.77.
 _CONFIDENT_SCORE = 0.8
 _MIN_FRACTION = 0.005  # smaller objects are treated as "nothing found"
-_FULL_FRACTION = 0.98  # photo masks covering more than this are "the whole frame"
-_KEEP_FRACTION = 0.25  # extra components kept if at least this fraction of the largest
-_MORPH_FRACTION = 0.01  # open/close radius as a fraction of sqrt(object area)
-_BORDER_FULL = 0.5  # a border counts as covered when this fraction of it is object
 _BLUR_MARGIN = 0.02  # texture-blurred thresholds must beat sharp ones by this score
 _CONTRAST_SIGMA = 2.0  # neighbourhood (coarse pixels) on which boundary contrast is judged
 
@@ -65,141 +83,6 @@ class Segmentation:
     method: str
     contour: np.ndarray
     details: dict = field(default_factory=dict)
-
-
-# ----------------------------------------------------------------------------- helpers
-
-
-def _resize(array: np.ndarray, size: tuple[int, int], interpolation: int) -> np.ndarray:
-    """cv2.resize to ``size`` = (width, height); a no-op when the size already matches."""
-    if array.shape[1] == size[0] and array.shape[0] == size[1]:
-        return array
-    return cv2.resize(array, size, interpolation=interpolation)
-
-
-def _shape_for(shape: tuple[int, int], long_side: int) -> tuple[int, int]:
-    """(width, height) of ``shape`` = (H, W) scaled down so the long side is <= long_side."""
-    height, width = shape
-    scale = min(1.0, long_side / max(height, width))
-    return max(1, round(width * scale)), max(1, round(height * scale))
-
-
-def _border_ring(shape: tuple[int, int], width: int) -> np.ndarray:
-    """(H, W) bool: the frame of ``width`` pixels along the image border."""
-    ring = np.zeros(shape, bool)
-    ring[:width], ring[-width:], ring[:, :width], ring[:, -width:] = True, True, True, True
-    return ring
-
-
-def _border_pixels(mask: np.ndarray) -> list[np.ndarray]:
-    """The four 1-pixel borders of ``mask`` (top, bottom, left, right)."""
-    return [mask[0], mask[-1], mask[:, 0], mask[:, -1]]
-
-
-def _border_contact(mask: np.ndarray) -> float:
-    """Fraction of the image's border pixels that lie on the object."""
-    return float(np.concatenate(_border_pixels(mask)).mean())
-
-
-def _fills_frame(mask: np.ndarray) -> bool:
-    """True when the mask is "the whole frame": > 98% of it, or most of all four borders."""
-    if mask.mean() > _FULL_FRACTION:
-        return True
-    return all(side.mean() > _BORDER_FULL for side in _border_pixels(mask))
-
-
-def _fill_holes(mask: np.ndarray) -> np.ndarray:
-    """Fill background regions not 4-connected to the outside (objects are 8-connected)."""
-    padded = np.pad(mask.astype(np.uint8), 1)
-    outside = padded.copy()
-    cv2.floodFill(outside, None, (0, 0), 2)  # 4-connected fill of the outer background
-    return (outside != 2)[1:-1, 1:-1]
-
-
-def _disk(radius: int) -> np.ndarray:
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-
-
-def _clean(mask: np.ndarray) -> np.ndarray:
-    """Open scaled to the object, keep the main components, fill holes.
-
-    The radius is 1% of sqrt(object area), so 0 (no morphology) for objects under
-    10,000 pixels. Opening removes specks and thin spurs; a closing of the opened mask
-    with the same disk only decides which pieces belong together (a leg cut off by a
-    one-pixel gap stays with its body), and is not added to the result, so narrow gaps
-    (between legs, tail and body) are not bridged and then filled as holes. Pieces are
-    8-connected; the largest group is kept with every other one at least 25% of its
-    area. Holes are background regions not 4-connected to the image border.
-    """
-    mask = np.asarray(mask, bool)
-    area = int(mask.sum())
-    if area == 0:
-        return mask.copy()
-    radius = int(_MORPH_FRACTION * np.sqrt(area))
-    opened = mask.astype(np.uint8)
-    grouped = opened
-    if radius > 0:
-        opened = cv2.morphologyEx(opened, cv2.MORPH_OPEN, _disk(radius))
-        grouped = cv2.morphologyEx(opened, cv2.MORPH_CLOSE, _disk(radius))
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(grouped, connectivity=8)
-    if count <= 1:
-        return np.zeros_like(mask)
-    areas = stats[1:, cv2.CC_STAT_AREA]
-    keep = np.flatnonzero(areas >= _KEEP_FRACTION * areas.max()) + 1
-    return _fill_holes(opened.astype(bool) & np.isin(labels, keep))
-
-
-def _largest_component(mask: np.ndarray) -> np.ndarray:
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    if count <= 1:
-        return mask.copy()
-    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-
-
-def _outer_contour(mask: np.ndarray, scale_xy: tuple[float, float]) -> np.ndarray:
-    """Outer boundary of the largest component of a bool mask as (N, 2) (x, y) float64.
-
-    It is the 0.5 iso-line of the mask between pixel centres (marching squares, with
-    8-connected foreground), shifted to the package convention (centre = index + 0.5)
-    and scaled by ``scale_xy`` to the output resolution.
-    """
-    main = _largest_component(mask)
-    padded = np.pad(main.astype(np.float64), 1)
-    contours = find_contours(padded, 0.5, fully_connected="high")
-    if not contours:
-        return np.zeros((0, 2))
-    best = max(contours, key=lambda c: abs(_shoelace(c[:, ::-1])))
-    xy = best[:, ::-1] - 1.0 + 0.5  # (row, col) in the padded array -> (x, y) pixels
-    if len(xy) > 1 and np.allclose(xy[0], xy[-1]):
-        xy = xy[:-1]
-    if _shoelace(xy) < 0:
-        xy = xy[::-1]
-    return np.ascontiguousarray(xy * np.asarray(scale_xy))
-
-
-def _shoelace(xy: np.ndarray) -> float:
-    x, y = xy[:, 0], xy[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
-def _binarise(mask: np.ndarray) -> np.ndarray:
-    """A user mask as bool: bool as is; numbers >= the midpoint of their range.
-
-    So 0/1, 0/255 and soft [0, 1] masks all work; a constant mask is all object when it
-    is non-zero.
-    """
-    array = np.asarray(mask)
-    if array.dtype == bool:
-        return array
-    if not (np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)):
-        raise JeansError("mask must be boolean or numeric")
-    array = array.astype(np.float64)
-    if not np.isfinite(array).all():
-        raise JeansError("mask contains NaN or infinite values")
-    low, high = float(array.min()), float(array.max())
-    if low == high:
-        return np.full(array.shape, high != 0)
-    return array >= 0.5 * (low + high)
 
 
 # ----------------------------------------------------------------------------- the scene
@@ -236,7 +119,7 @@ def _saliency(rgb: np.ndarray) -> np.ndarray:
     ok, saliency = detector.computeSaliency(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     if not ok:
         return np.ones(rgb.shape[:2], np.float32)
-    saliency = _resize(saliency.astype(np.float32), rgb.shape[1::-1], cv2.INTER_LINEAR)
+    saliency = resize(saliency.astype(np.float32), rgb.shape[1::-1], cv2.INTER_LINEAR)
     saliency = cv2.GaussianBlur(saliency, (0, 0), 0.01 * max(rgb.shape[:2]) + 1)
     return saliency / (float(saliency.max()) + 1e-6)
 
@@ -270,7 +153,7 @@ def _local_contrast(moments: _LabMoments, mask: np.ndarray, floor: float = 4.0) 
     real colour edges, low where it cuts through a uniform or textured region.
     """
     eight = mask.astype(np.uint8)
-    boundary = cv2.dilate(eight, _disk(1)) > cv2.erode(eight, _disk(1))
+    boundary = cv2.dilate(eight, disk(1)) > cv2.erode(eight, disk(1))
     if not boundary.any():
         return 0.0
     inside = mask.astype(np.float32)
@@ -306,12 +189,12 @@ class _Scene:
 
     def __init__(self, rgb: np.ndarray):
         self.working_size = rgb.shape[1::-1]
-        self.size = _shape_for(rgb.shape[:2], _COARSE_SIZE)
+        self.size = shape_for(rgb.shape[:2], _COARSE_SIZE)
         self.factor = rgb.shape[1] / self.size[0]
-        self.rgb = _resize(rgb, self.size, cv2.INTER_AREA)
+        self.rgb = resize(rgb, self.size, cv2.INTER_AREA)
         height, width = self.rgb.shape[:2]
         self.ring_width = max(2, round(0.03 * min(height, width)))
-        self.ring = _border_ring((height, width), self.ring_width)
+        self.ring = border_ring((height, width), self.ring_width)
         self.texture_sigma = max(2.0, 0.012 * max(self.size))
         self.images = {
             "fine": cv2.GaussianBlur(self.rgb, (0, 0), 1.0),
@@ -326,7 +209,7 @@ class _Scene:
             # Cleaned like an object mask: scattered rare background colours (specks,
             # craters) drop out, leaving the main region the border does not explain.
             unexplained = (raw > 0.5) & ~self.ring
-            self.unlike[scale] = _clean(unexplained)
+            self.unlike[scale] = clean(unexplained)
             tidiness[scale] = float((self.unlike[scale] & unexplained).sum()) / max(float(unexplained.sum()), 1.0)
         # tidiness: the share of unexplained pixels that survive cleaning. Under 0.65 at
         # the fine scale means mostly texture specks; switch when the texture scale is
@@ -337,9 +220,22 @@ class _Scene:
         # Every candidate is scored at this scale: blur its moments once.
         self.contrast_moments = _LabMoments.of(labs[self.scale])
 
+    @property
+    def hypothesis_size(self) -> tuple[int, int]:
+        """(width, height) of the copy that auto's hypotheses are cut on."""
+        return shape_for(self.rgb.shape[:2], _HYPOTHESIS_SIZE)
+
+    def hypothesis(self) -> np.ndarray:
+        """The coarse image at :attr:`hypothesis_size`."""
+        return resize(self.rgb, self.hypothesis_size, cv2.INTER_AREA)
+
+    def from_hypothesis(self, mask: np.ndarray) -> np.ndarray:
+        """A hypothesis-size mask upsampled to coarse size and cleaned."""
+        return clean(resize(mask.astype(np.float32), self.size, cv2.INTER_LINEAR) >= 0.5)
+
     def to_coarse(self, mask: np.ndarray) -> np.ndarray:
         """A working-resolution bool mask at coarse resolution (area coverage >= 0.5)."""
-        return _resize(mask.astype(np.float32), self.size, cv2.INTER_AREA) >= 0.5
+        return resize(mask.astype(np.float32), self.size, cv2.INTER_AREA) >= 0.5
 
     def features(self, mask: np.ndarray) -> dict:
         """Score a bool mask (working or coarse resolution), at ``self.scale``.
@@ -353,15 +249,15 @@ class _Scene:
         """
         small = mask if mask.shape == self.rgb.shape[:2] else self.to_coarse(mask)
         fraction = float(small.mean())
-        border = _border_contact(small)
+        border = border_contact(small)
         result = {"fraction": round(fraction, 4), "border": round(border, 4)}
-        if fraction < _MIN_FRACTION or _fills_frame(small):
+        if fraction < _MIN_FRACTION or fills_frame(small):
             zero = dict.fromkeys(("completeness", "precision", "agreement", "contrast", "score"), 0.0)
             return {**result, **zero}
         # Mixed colours along any edge are "unexplained" too: judge away from the
         # candidate's own boundary (1 coarse pixel either side) so they bias no side.
         eight = small.astype(np.uint8)
-        near = cv2.dilate(eight, _disk(1)) > cv2.erode(eight, _disk(1))
+        near = cv2.dilate(eight, disk(1)) > cv2.erode(eight, disk(1))
         inside, unlike = small & ~near, self.unlike[self.scale] & ~near
         hits = float((inside & unlike).sum())
         completeness = hits / max(float(unlike.sum()), 1.0)
@@ -384,13 +280,13 @@ class _Scene:
 def _coverage(mask8: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """A 0..255 uint8 coverage (alpha, or a bool mask x 255) at ``size``, area-averaged,
     as bool >= 128 (exactly ``alpha >= 128`` when no downscaling happens)."""
-    return _resize(mask8, size, cv2.INTER_AREA) >= 128
+    return resize(mask8, size, cv2.INTER_AREA) >= 128
 
 
 def _alpha_meaningful(alpha: np.ndarray) -> bool:
     """An alpha channel is a silhouette when 0.5%..98% of the image is opaque (>= 128)."""
     fraction = float((alpha >= 128).mean())
-    return _MIN_FRACTION <= fraction <= _FULL_FRACTION
+    return _MIN_FRACTION <= fraction <= FULL_FRACTION
 
 
 def _channels(rgb: np.ndarray) -> dict[str, np.ndarray]:
@@ -408,7 +304,7 @@ def _channels(rgb: np.ndarray) -> dict[str, np.ndarray]:
 def _split(channel: np.ndarray, threshold: float) -> tuple[np.ndarray, str]:
     """Split at ``threshold``; the object is the side touching less of the border."""
     light = channel >= threshold
-    if _border_contact(light) <= _border_contact(~light):
+    if border_contact(light) <= border_contact(~light):
         return light, "light"
     return ~light, "dark"
 
@@ -419,7 +315,7 @@ def _threshold(rgb: np.ndarray, threshold: float | None, scene: _Scene) -> tuple
     Returns the cleaned working mask and what was chosen."""
     if threshold is not None:
         raw, polarity = _split(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), threshold)
-        cleaned = _clean(raw)
+        cleaned = clean(raw)
         info = {"channel": "grey", "blur_sigma": 0.0, "threshold": float(threshold), "polarity": polarity}
         return cleaned, {**info, "features": scene.features(cleaned)}
     best: tuple[np.ndarray, dict] | None = None
@@ -434,7 +330,7 @@ def _threshold(rgb: np.ndarray, threshold: float | None, scene: _Scene) -> tuple
             value, _ = cv2.threshold(channel, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
             # Otsu's value t keeps pixels > t, i.e. >= t + 1 on integers.
             raw, polarity = _split(channel, value + 1)
-            cleaned = _clean(raw)
+            cleaned = clean(raw)
             features = scene.features(cleaned)
             key = f"{name}@{sigma:.1f}"
             scores[key] = features["score"]
@@ -475,7 +371,7 @@ def _seed_labels(scene: _Scene, scale: str) -> np.ndarray | None:
     otsu, _ = cv2.threshold(prior8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     seed = (prior8 > max(float(otsu), 0.25 * 255)).astype(np.uint8)
     # Edge pixels mix object and background colours: keep them out of the object model.
-    seed = cv2.erode(seed, _disk(1)).astype(bool)
+    seed = cv2.erode(seed, disk(1)).astype(bool)
     if not seed.any() or seed.all():
         return None
     labels = np.full(seed.shape, cv2.GC_PR_BGD, np.uint8)
@@ -484,40 +380,48 @@ def _seed_labels(scene: _Scene, scale: str) -> np.ndarray | None:
     return labels
 
 
-def _grabcut_coarse(scene: _Scene, variant: str, rect=None) -> np.ndarray | None:
+def _grabcut_coarse(scene: _Scene, variant: str, rect=None, hypothesis: bool = False) -> np.ndarray | None:
     """One GrabCut at coarse resolution, cleaned; None if it cannot start.
 
     Variants: "colour" (seeds and cut on the image), "texture" (on the texture-blurred
     image, where regions differing in mean colour under a texture separate) and "rect"
-    (``rect`` = (x, y, w, h) in coarse pixels).
+    (``rect`` = (x, y, w, h) in coarse pixels). ``hypothesis``: cut the scene's small
+    copy (:meth:`_Scene.hypothesis`) and return the mask upsampled to coarse size.
     """
     if variant == "rect":
         labels = np.zeros(scene.rgb.shape[:2], np.uint8)
-        return _clean(_run_grabcut(scene.rgb, labels, _COARSE_ITERATIONS, rect=rect))
+        return clean(_run_grabcut(scene.rgb, labels, _COARSE_ITERATIONS, rect=rect))
     scale = "fine" if variant == "colour" else "texture"
     labels = _seed_labels(scene, scale)
     if labels is None:
         return None
-    return _clean(_run_grabcut(scene.rgb if scale == "fine" else scene.images["texture"], labels, _COARSE_ITERATIONS))
+    image = scene.rgb if scale == "fine" else scene.images["texture"]
+    if not hypothesis:
+        return clean(_run_grabcut(image, labels, _COARSE_ITERATIONS))
+    small = scene.hypothesis_size
+    cut = _run_grabcut(resize(image, small, cv2.INTER_AREA), resize(labels, small, cv2.INTER_NEAREST), _HYPOTHESIS_ITERATIONS)
+    return scene.from_hypothesis(cut)
 
 
-def _refine(rgb: np.ndarray, coarse: np.ndarray, scene: _Scene, variant: str) -> np.ndarray:
+def _refine(rgb: np.ndarray, coarse: np.ndarray, scene: _Scene, variant: str, source_width: int | None = None) -> np.ndarray:
     """Redo a coarse GrabCut mask at working resolution in a band around its boundary.
 
-    Pixels farther than ~1.5 coarse pixels from the upsampled boundary keep their label
+    Pixels farther than ~1.5 source pixels from the upsampled boundary keep their label
     (definite); the band is re-labelled by a short GrabCut on the bounding box crop.
+    ``source_width``: width of the image the mask was cut at (default: coarse), which
+    sets how uncertain its boundary is.
     """
     width, height = scene.working_size
-    upsampled = _resize(coarse.astype(np.float32), (width, height), cv2.INTER_LINEAR) >= 0.5
+    upsampled = resize(coarse.astype(np.float32), (width, height), cv2.INTER_LINEAR) >= 0.5
     if scene.factor <= 1.0 or not upsampled.any():
         return upsampled
-    band = max(2, int(np.ceil(1.5 * scene.factor)))
+    band = max(2, int(np.ceil(1.5 * width / (source_width or scene.size[0]))))
     rows, cols = np.nonzero(upsampled)
     y0, y1 = max(rows.min() - 2 * band, 0), min(rows.max() + 2 * band + 1, height)
     x0, x1 = max(cols.min() - 2 * band, 0), min(cols.max() + 2 * band + 1, width)
     crop = upsampled[y0:y1, x0:x1]
     inside = crop.astype(np.uint8)
-    kernel = _disk(band)
+    kernel = disk(band)
     near = cv2.dilate(inside, kernel).astype(bool) & ~cv2.erode(inside, kernel).astype(bool)
     labels = np.where(crop, cv2.GC_FGD, cv2.GC_BGD).astype(np.uint8)
     labels[near & crop] = cv2.GC_PR_FGD
@@ -530,14 +434,14 @@ def _refine(rgb: np.ndarray, coarse: np.ndarray, scene: _Scene, variant: str) ->
         refined[y0:y1, x0:x1] = _run_grabcut(np.ascontiguousarray(image), labels, 2)
     except JeansError:  # one class missing from the crop: keep the coarse answer
         return upsampled
-    return _clean(refined)
+    return clean(refined)
 
 
-def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray, dict]:
-    """GrabCut variants at coarse resolution, the best-scoring one refined at working
-    resolution. With ``rect_work`` (x, y, w, h, working pixels) only the rect variant
+def _grabcut_coarse_best(scene: _Scene, rect_work=None, hypothesis: bool = False) -> tuple[str, np.ndarray, dict]:
+    """GrabCut variants at coarse resolution: ``(chosen variant, its mask, variant
+    scores)``. With ``rect_work`` (x, y, w, h, working pixels) only the rect variant
     runs, else "colour" and, unless colour scored at least ``_CONFIDENT_SCORE``,
-    "texture"."""
+    "texture". ``hypothesis``: cut on the scene's small copy (see :func:`_grabcut_coarse`)."""
     if rect_work is not None:
         x, y, w, h = (v / scene.factor for v in rect_work)
         rect = (int(np.floor(x)), int(np.floor(y)), max(2, int(np.ceil(w))), max(2, int(np.ceil(h))))
@@ -549,7 +453,7 @@ def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray
         if variant == "texture" and "colour" in variants and variants["colour"][1]["score"] >= _CONFIDENT_SCORE:
             continue
         try:
-            mask = _grabcut_coarse(scene, variant, **kwargs)
+            mask = _grabcut_coarse(scene, variant, hypothesis=hypothesis, **kwargs)
         except JeansError:
             mask = None
         if mask is not None and mask.any():
@@ -557,11 +461,17 @@ def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray
     if not variants:
         raise JeansError("no object found to segment")
     chosen = max(variants, key=lambda name: variants[name][1]["score"])
-    refined = _refine(rgb, variants[chosen][0], scene, chosen)
+    return chosen, variants[chosen][0], {name: features["score"] for name, (_, features) in variants.items()}
+
+
+def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray, dict]:
+    """The best GrabCut variant (:func:`_grabcut_coarse_best`) refined at working resolution."""
+    chosen, coarse, scores = _grabcut_coarse_best(scene, rect_work)
+    refined = _refine(rgb, coarse, scene, chosen)
     info = {
         "variant": chosen,
         "coarse_shape": scene.rgb.shape[:2],
-        "variant_scores": {name: features["score"] for name, (_, features) in variants.items()},
+        "variant_scores": scores,
         "features": scene.features(refined),
     }
     if rect_work is not None:
@@ -569,26 +479,71 @@ def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray
     return refined, info
 
 
-# ----------------------------------------------------------------------------- public
+def _grabcut_or_none(image: np.ndarray, labels: np.ndarray, iterations: int) -> np.ndarray | None:
+    """:func:`_run_grabcut` for hypotheses that may fail: None instead of an error."""
+    try:
+        return _run_grabcut(image, labels, iterations)
+    except JeansError:
+        return None
 
 
-def clean_mask(mask: np.ndarray) -> np.ndarray:
-    """Clean a (H, W) mask: morphology scaled to the object, main components, no holes.
+def _auto(rgb: np.ndarray, scene: _Scene, details: dict) -> tuple[np.ndarray, str]:
+    """Every hypothesis at coarse resolution, the consensus pick
+    (:mod:`jeanscv.silhouette.consensus`) at working resolution: the threshold split as
+    it is, a GrabCut hypothesis refined along its boundary."""
+    from .consensus import choose, rect_candidate, saliency_candidates
 
-    ``mask`` is bool, or numeric (thresholded at the midpoint of its range, so 0/1,
-    0/255 and soft masks work). Opens with a disk of radius 1% of sqrt(object area)
-    (none under 10,000 object pixels); groups pieces through a closing with the same
-    disk; keeps the largest group and any other at least 25% of its area; fills holes
-    (background not 4-connected to the border). Returns (H, W) bool at the same
-    resolution (no downscaling). Raises JeansError if nothing is left.
-    """
-    array = np.asarray(mask)
-    if array.ndim != 2 or min(array.shape) < 1:
-        raise JeansError("mask must be a 2-D array")
-    cleaned = _clean(_binarise(array))
-    if not cleaned.any():
+    coarse: dict[str, np.ndarray] = {}
+    threshold_mask = None
+    try:
+        threshold_mask, threshold_info = _threshold(rgb, None, scene)
+        coarse["threshold"] = scene.to_coarse(threshold_mask)
+        details["threshold"] = {k: v for k, v in threshold_info.items() if k not in ("features", "scores")}
+    except JeansError:
+        pass
+    grabcut_variant = "colour"
+    try:
+        grabcut_variant, coarse["grabcut"], _ = _grabcut_coarse_best(scene, hypothesis=True)
+    except JeansError:
+        pass
+    small = scene.hypothesis()
+
+    def cut(image: np.ndarray, labels: np.ndarray) -> np.ndarray | None:
+        return _grabcut_or_none(image, labels, _HYPOTHESIS_ITERATIONS)
+
+    rect = rect_candidate(small, cut, scene.from_hypothesis)
+    if rect is not None:
+        coarse["rect"] = rect
+    coarse.update(saliency_candidates(small, cut, scene.from_hypothesis))
+    usable = {
+        name: m for name, m in coarse.items()
+        if m.mean() >= _MIN_FRACTION and not fills_frame(m) and rim_fraction(m) <= RIM_ONLY
+    }
+    if not usable:
         raise JeansError("no object found to segment")
-    return cleaned
+    winner, ranked = choose(
+        usable, lambda m: _local_contrast(scene.contrast_moments, m), lambda m: scene.features(m)["agreement"]
+    )
+    best = ranked[0]
+    if best.contrast <= 0:
+        raise JeansError("no object found to segment")
+    details["candidates"] = {
+        c.name: {"consensus": round(c.consensus, 4), "contrast": round(c.contrast, 4),
+                 "agreement": round(c.agreement, 4), "side_contact": round(c.side_contact, 4), "score": round(c.score, 4), "fraction": round(float(c.mask.mean()), 4)}
+        for c in ranked
+    }
+    details["chosen"] = winner
+    details["reason"] = (
+        f"{winner} agrees most with the other {len(ranked) - 1} hypotheses (mean IoU {best.consensus:.2f}) "
+        f"along strong colour edges (contrast {best.contrast:.2f}; border-colour agreement {best.agreement:.2f})"
+    )
+    if winner == "threshold":
+        return threshold_mask, "threshold"
+    variant = grabcut_variant if winner == "grabcut" else "colour"
+    return _refine(rgb, usable[winner], scene, variant, source_width=scene.hypothesis_size[0]), "grabcut"
+
+
+# ----------------------------------------------------------------------------- public
 
 
 def _validate_image(image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -662,7 +617,7 @@ def segment(
         if not 0 <= threshold <= 255:  # also rejects NaN
             raise JeansError("threshold must be a number between 0 and 255")
     height, width = rgb.shape[:2]
-    size = _shape_for((height, width), int(working_size))
+    size = shape_for((height, width), int(working_size))
     details: dict = {"working_shape": (size[1], size[0])}
     user_mask = None
     if mask is not None:
@@ -691,32 +646,32 @@ def segment(
     elif method == "mask":
         if user_mask is None:
             raise JeansError("method 'mask' needs a mask")
-        given = _binarise(user_mask).astype(np.uint8) * 255
+        given = binarise(user_mask).astype(np.uint8) * 255
         used = "mask"
     if given is not None:
-        working = _clean(_coverage(given, size))
+        working = clean(_coverage(given, size))
     else:
         working, used = _segment_photo(
-            _resize(rgb, size, cv2.INTER_AREA), method, threshold, rect_full, width / size[0], details
+            resize(rgb, size, cv2.INTER_AREA), method, threshold, rect_full, width / size[0], details
         )
 
     fraction = float(working.mean())
     details["area_fraction"] = round(fraction, 4)
     if fraction < _MIN_FRACTION:
         raise JeansError("no object found to segment")
-    if working.all() or (photo and _fills_frame(working)):
+    if working.all() or (photo and fills_frame(working)):
         raise JeansError("the object fills the whole frame: no background to separate it from")
 
     # Linear upsampling of 0/255 then >= 128 is the "resize the float mask, threshold
     # at 0.5" rule in a quarter of the memory (matters for 24-MP photos).
-    soft = _resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR)
+    soft = resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR)
     full = soft >= 128
     if given is not None and size != (width, height):
         # A given silhouette is exact at full resolution: within one working pixel of
         # the cleaned boundary (where the upsampled mask is neither 0 nor 255) use it.
         band = (soft > 0) & (soft < 255)
         full[band] = given[band] >= 128
-    contour = _outer_contour(working, (width / size[0], height / size[1]))
+    contour = outer_contour(working, (width / size[0], height / size[1]))
     return Segmentation(mask=full, method=used, contour=contour, details=details)
 
 
@@ -730,37 +685,15 @@ def _segment_photo(
 ) -> tuple[np.ndarray, str]:
     """threshold / grabcut / auto on the working-size RGB; returns (clean mask, method).
 
-    auto runs the threshold search and the GrabCut variants and keeps whichever of the
-    two best scores higher.
+    auto weighs every hypothesis by consensus (:func:`_auto`).
     """
     scene = _Scene(rgb)
-    results: dict[str, tuple[np.ndarray, dict]] = {}
-    if method in ("threshold", "auto"):
-        try:
-            results["threshold"] = _threshold(rgb, threshold, scene)
-        except JeansError:
-            if method == "threshold":
-                raise
-    if method in ("grabcut", "auto"):
-        rect_work = None if rect_full is None else tuple(v / factor for v in rect_full)
-        try:
-            results["grabcut"] = _grabcut(rgb, scene, rect_work)
-        except JeansError:
-            if method == "grabcut":
-                raise
     if method == "auto":
-        if not results:
-            raise JeansError("no object found to segment")
-        ranked = sorted(results, key=lambda name: results[name][1]["features"]["score"], reverse=True)
-        details["candidates"] = {name: results[name][1]["features"] for name in results}
-        chosen = ranked[0]
-        if results[chosen][1]["features"]["score"] <= 0:
-            raise JeansError("no object found to segment")
-        details["reason"] = f"{chosen} scored best: " + ", ".join(
-            f"{name} {results[name][1]['features']['score']:.3f}" for name in ranked
-        )
+        return _auto(rgb, scene, details)
+    if method == "threshold":
+        mask, info = _threshold(rgb, threshold, scene)
     else:
-        chosen = method
-    mask, info = results[chosen]
-    details[chosen] = info
-    return mask, chosen
+        rect_work = None if rect_full is None else tuple(v / factor for v in rect_full)
+        mask, info = _grabcut(rgb, scene, rect_work)
+    details[method] = info
+    return mask, method
