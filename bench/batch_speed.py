@@ -72,13 +72,14 @@ _MEASURED = (
 )
 
 
-def run(folder: Path, out: Path, jobs: int) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MB) of the busiest process of one CLI run, as the
-    CLI process itself (and its -j workers) saw it."""
+def run(folder: Path, out: Path, jobs: int, options: list[str] | tuple[str, ...] = ()) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MB) of the busiest process of one CLI run (with more
+    ``options``), as the CLI process itself (and its -j workers) saw it."""
     report = out.with_suffix(".peak")
     began = time.perf_counter()
     subprocess.run(
-        [sys.executable, "-c", _MEASURED, str(report), str(folder), "-o", str(out), "-j", str(jobs), "-q", "--overwrite"],
+        [sys.executable, "-c", _MEASURED, str(report), str(folder), "-o", str(out), "-j", str(jobs), "-q", "--overwrite",
+         *options],
         check=True,
     )
     wall = time.perf_counter() - began

@@ -35,12 +35,13 @@ def _num(value: float) -> str:
 
 
 def svg_document(
-    vertices: np.ndarray, contours: list[np.ndarray], size: tuple[int, int], title: str = ""
+    vertices: np.ndarray | list[np.ndarray], contours: list[np.ndarray], size: tuple[int, int], title: str = ""
 ) -> str:
-    """An SVG of the fit in image pixels: black silhouette, blue jeans polygon.
+    """An SVG of the fit in image pixels: black silhouette, blue jeans polygons.
 
     Args:
-        vertices: ``(N, 2)`` jeans polygon, image pixels.
+        vertices: ``(N, 2)`` jeans polygon, image pixels, or one per object (ids
+            ``jeans``, ``jeans-2``, ...).
         contours: silhouette boundaries ``[(K, 2)]``, image pixels, filled even-odd.
         size: ``(width, height)`` of the image; also the viewBox.
     """
@@ -58,8 +59,11 @@ def svg_document(
             "M" + " L".join(f"{_num(x)},{_num(y)}" for x, y in c) + " Z" for c in contours
         )
         lines.append(f'  <path id="silhouette" d={quoteattr(d)} fill="#000000" fill-rule="evenodd"/>')
-    points = " ".join(f"{_num(x)},{_num(y)}" for x, y in np.asarray(vertices, dtype=np.float64))
-    lines.append(f'  <polygon id="jeans" points="{points}" fill="#0000ff"/>')
+    polygons = [vertices] if isinstance(vertices, np.ndarray) and vertices.ndim == 2 else list(vertices)
+    for index, polygon in enumerate(polygons):
+        points = " ".join(f"{_num(x)},{_num(y)}" for x, y in np.asarray(polygon, dtype=np.float64))
+        name = "jeans" if index == 0 else f"jeans-{index + 1}"
+        lines.append(f'  <polygon id="{name}" points="{points}" fill="#0000ff"/>')
     lines.append("</svg>")
     return "\n".join(lines) + "\n"
 

@@ -25,6 +25,8 @@ Examples:
   jeanscv cat.jpg --top "how would" --bottom "a cat wear jeans" --side-by-side
   jeanscv horse.png --json --svg --gif  sidecars: report, vector overlay, animation
   jeanscv cat.jpg --mask cat_mask.png   your own mask instead of the segmentation
+  jeanscv pets.jpg --objects all        jeans on every separate object
+  jeanscv pets.jpg --point 420,310      jeans on the object under that pixel
 
 \b
 Outputs are written next to each input as NAME.jeans.EXT (or under -o DIR).
@@ -43,6 +45,19 @@ def _parse_rect(ctx: click.Context, param: click.Parameter, value: str | None):
     if w <= 0 or h <= 0:
         raise click.BadParameter("width and height must be positive")
     return x, y, w, h
+
+
+def _parse_points(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]):
+    points = []
+    for value in values:
+        try:
+            x, y = (float(v) for v in value.split(","))
+        except ValueError:
+            raise click.BadParameter(f"expected two numbers X,Y (image pixels), e.g. 420,310; got {value!r}") from None
+        if not (abs(x) < float("inf") and abs(y) < float("inf")):
+            raise click.BadParameter(f"expected finite numbers X,Y, got {value!r}")
+        points.append((x, y))
+    return tuple(points)
 
 
 def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> None:
@@ -107,6 +122,10 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option("--threshold", type=click.FloatRange(0, 255), help="Grey level for --silhouette threshold.")
 @click.option("--mask", type=click.Path(exists=True, dir_okay=False), help="Mask image for a single input.")
 @click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")
+@click.option("--objects", type=click.Choice(["one", "all"]), default="one", show_default=True,
+              help="Jeans on the main subject only, or on every separate object of a photo.")
+@click.option("--point", "points", multiple=True, callback=_parse_points, metavar="X,Y",
+              help="Put jeans on the object under this pixel of the photo, like a click (repeatable; one input).")
 @click.option("--style", type=click.Choice(["denim", "flat"]), default="denim", show_default=True,
               help="denim texture, or the paper's flat blue.")
 @click.option("--clip/--no-clip", default=True, show_default=True, help="Paint jeans only on the object.")
@@ -115,7 +134,9 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option("--side-by-side", is_flag=True, help="Output the original and the result side by side.")
 @click.option("--max-pixels", type=click.IntRange(1), default=100_000_000, show_default=True,
               help="Refuse images larger than this.")
-@click.option("--raw-full-size", is_flag=True, help="Decode RAW files at full size (default: half size).")
+@click.option("--raw-half-size", is_flag=True, help="Decode RAW files at half size, for speed (default: full size).")
+@click.option("--raw-full-size", is_flag=True, hidden=True, expose_value=False,
+              help="Accepted for compatibility: RAW files decode at full size by default.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
               help="Where to fit.")
 @click.option("-j", "--jobs", type=click.IntRange(1), default=1, show_default=True,
@@ -148,7 +169,8 @@ def _usage(message: str) -> click.UsageError:
 def _main(
     ctx: click.Context, paths: tuple[str, ...], *, output_dir, recursive, fmt, overwrite, want_json, want_svg,
     want_gif, gif_frames, report, preset, garment, iterations, seed, starts, kind, silhouette_method, threshold,
-    mask, rect, style, clip, top, bottom, side_by_side, max_pixels, raw_full_size, device, jobs, quiet, verbose,
+    mask, rect, objects, points, style, clip, top, bottom, side_by_side, max_pixels, raw_half_size, device, jobs,
+    quiet, verbose,
 ) -> int:
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
@@ -177,11 +199,13 @@ def _main(
     found = collect(list(paths), recursive, output_dir, fmt, extras)
     if mask is not None and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--mask needs exactly one input image")
+    if points and len(found.jobs) + len(found.problems) != 1:
+        raise _usage("--point needs exactly one input image (its pixels are that image's)")
     options = Options(
         preset=preset, garment=garment, iterations=iterations, seed=seed, starts=starts, kind=kind,
-        silhouette=silhouette_method, threshold=threshold, mask=mask, rect=rect, style=style, clip=clip,
-        max_pixels=max_pixels, raw_full_size=raw_full_size, device=device, overwrite=overwrite, top=top,
-        bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,
+        silhouette=silhouette_method, threshold=threshold, mask=mask, rect=rect, objects=objects, points=points,
+        style=style, clip=clip, max_pixels=max_pixels, raw_half_size=raw_half_size, device=device,
+        overwrite=overwrite, top=top, bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,
     )
 
     progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
@@ -236,6 +260,8 @@ def _main(
             code = code or 1
     if code:
         return code
+    if any(outcome.usage for outcome in outcomes.values()):
+        return 2  # an option did not fit its input (a --point outside the image)
     return 1 if progress.counts["failed"] else 0
 
 

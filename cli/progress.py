@@ -104,6 +104,11 @@ class Progress:
                 f"paper total {info.get('paper_total', 0):.6g}"
             )
             self._write(f"    terms: {terms}")
+            objects = info.get("objects", [])
+            for number, obj in enumerate(objects if len(objects) > 1 else [], 1):
+                x, y, w, h = obj["box"]
+                self._write(f"    object {number}: {obj['method']}, box {x},{y} {w}x{h}, "
+                            f"objective {obj['objective']:.6g}, rules {'passed' if obj['rules_passed'] else 'failed'}")
         self._redraw()
 
     def skip_quietly(self, count: int) -> None:

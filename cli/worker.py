@@ -30,10 +30,12 @@ class Options:
     threshold: float | None = None
     mask: str | None = None
     rect: tuple[int, int, int, int] | None = None
+    objects: str = "one"
+    points: tuple[tuple[float, float], ...] = ()
     style: str = "denim"
     clip: bool = True
     max_pixels: int = 100_000_000
-    raw_full_size: bool = False
+    raw_half_size: bool = False
     device: str = "cpu"
     overwrite: bool = False
     top: str | None = None
@@ -54,6 +56,7 @@ class Outcome:
     error: str = ""  # why it failed or was skipped
     seconds: float = 0.0
     info: dict = field(default_factory=dict)  # kind, method, device, fit seconds, loss terms
+    usage: bool = False  # failed because an option did not fit the input (exit status 2)
 
     def record(self) -> dict:
         """One line of ``--report``: ``error`` holds a failure's reason, ``reason`` a skip's."""
@@ -171,7 +174,9 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         style=options.style,
         clip=options.clip,
         max_pixels=options.max_pixels,
-        raw_full_size=options.raw_full_size,
+        raw_half_size=options.raw_half_size,
+        objects=options.objects,
+        points=list(options.points),
     )
     fit = result.fit
     outcome.info = {
@@ -183,6 +188,7 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         "terms": {k: float(v) for k, v in fit.terms.items()},
         "paper_total": float(fit.paper_total),
         "paper_terms": {k: float(v) for k, v in fit.paper_terms.items()},
+        "objects": [_object_info(obj) for obj in result.objects],
     }
     # Everything is encoded before the first write, so a failure leaves no outputs.
     data: dict[str, bytes] = {}
@@ -191,9 +197,10 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
     if "json" in targets:
         data["json"] = report_json(result, job).encode("utf-8")
     if "svg" in targets:
-        vertices = result.silhouette.framing.to_image(fit.vertices)
+        polygons = [obj.silhouette.framing.to_image(obj.fit.vertices) for obj in result.objects]
+        contours = [c for obj in result.objects for c in silhouette_contours(obj.silhouette)]
         size = tuple(int(v) for v in result.silhouette.framing.image_size)
-        text = svg_document(vertices, silhouette_contours(result.silhouette), size, f"jeanscv: {job.path.name}")
+        text = svg_document(polygons, contours, size, f"jeanscv: {job.path.name}")
         data["svg"] = text.encode("utf-8")
     if "gif" in targets:
         if getattr(fit, "trajectory", None) is None:
@@ -204,6 +211,13 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         _ensure_folder(path.parent)
         atomic_write_bytes(path, payload)
         outcome.written.append(str(path))
+
+
+def _object_info(obj) -> dict:
+    """One object's line of ``-v`` and of ``--report``: method, box, objective, rules passed."""
+    entry = obj.report()
+    return {"method": entry["method"], "box": entry["box"], "objective": entry["objective"],
+            "rules_passed": entry["rules"]["passed"]}
 
 
 # Worker processes: whether a file is being processed, for the SIGTERM handler.
@@ -223,8 +237,11 @@ def process(job: Job, options: Options) -> Outcome:
     try:
         _run(job, options, outcome)
     except Exception as exc:  # noqa: BLE001 - every failure becomes one line for this file
+        from jeanscv.errors import OptionError
+
         outcome.status, outcome.error = "failed", failure_reason(exc)
         outcome.output = ""
+        outcome.usage = isinstance(exc, OptionError)
     finally:
         _BUSY = False
     outcome.seconds = time.perf_counter() - began

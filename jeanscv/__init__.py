@@ -19,6 +19,7 @@ __version__ = "0.1.0"
 _LAZY = {
     "load_image": "jeanscv.api",
     "extract_silhouette": "jeanscv.api",
+    "extract_silhouettes": "jeanscv.api",
     "fit": "jeanscv.api",
     "composite": "jeanscv.api",
     "apply_jeans": "jeanscv.api",

@@ -19,13 +19,16 @@ from .geometry import CANVAS_SIZE
 from .io.svg import SVG_EXTENSIONS
 
 KINDS = ("auto", "silhouette", "photo")
+#: ``one``: the main subject; ``all``: every separate object, each with its own garment.
+OBJECTS = ("one", "all")
 
 
 @dataclass
 class Silhouette:
     """An object's silhouette at image resolution and on the canvas.
 
-    ``mask``: ``(H, W)`` float32 alpha at image resolution; ``canvas``: the paper's
+    ``mask``: ``(H, W)`` float32 alpha at image resolution (bool for one of several
+    objects split from a photo, which saves memory on large photos); ``canvas``: the paper's
     ``S``, ``(256, 256)`` float32; ``framing`` maps canvas pixels to image pixels.
     """
 
@@ -162,11 +165,14 @@ def read_svg(path: str | os.PathLike) -> Silhouette:
     return Silhouette(svg.alpha, svg.alpha, framing, "svg", mask_is_canvas=True)
 
 
-def load_image(path: str | os.PathLike, max_pixels: int = 100_000_000, raw_full_size: bool = False):
-    """Decode a photo or RAW file: RGB(A) uint8, upright, with metadata (``LoadedImage``)."""
+def load_image(path: str | os.PathLike, max_pixels: int = 100_000_000, raw_half_size: bool = False):
+    """Decode a photo or RAW file: RGB(A) uint8, upright, with metadata (``LoadedImage``).
+
+    RAW files decode at the camera's full size, or at half size (faster) with ``raw_half_size``.
+    """
     from .io.image import load_image as _load
 
-    return _load(path, max_pixels=max_pixels, raw_full_size=raw_full_size)
+    return _load(path, max_pixels=max_pixels, raw_half_size=raw_half_size)
 
 
 def extract_silhouette(
@@ -192,6 +198,95 @@ def extract_silhouette(
         result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
     canvas, framing = frame_mask(result.mask)
     return Silhouette(result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details))
+
+
+def extract_silhouettes(
+    image: np.ndarray,
+    method: str = "auto",
+    *,
+    objects: str = "one",
+    points: list[tuple[float, float]] | None = None,
+    threshold: float | None = None,
+    rect: tuple[int, int, int, int] | None = None,
+    mask: np.ndarray | None = None,
+) -> list[Silhouette]:
+    """The objects of a photo ``(H, W, 3|4)`` uint8, each segmented and framed on its own.
+
+    ``objects="one"``: the main subject (as :func:`extract_silhouette`); ``"all"``: every
+    separate object of the subject mask, largest first (specks under 10% of the largest
+    are dropped). ``points``: ``(x, y)`` image pixels, like clicks: each picks the object
+    under it (or within 2% of the image's long side of it), else the object around it is
+    segmented by GrabCut seeded at the point (method ``"point"``); the picked objects
+    come first, in point order, and with ``"all"`` the other objects follow. Every
+    silhouette's ``details`` holds its ``box`` (x, y, w, h) and, when a point picked
+    it, the ``point``.
+    """
+    from .silhouette.objects import check_point, object_at, split_objects
+    from .silhouette.photo import binarise, segment
+    from .silhouette.seeded import segment_at_point
+
+    if objects not in OBJECTS:
+        raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
+    pixels = np.asarray(image)
+    clicks = [check_point(point, pixels.shape[:2]) for point in points or ()]
+    try:
+        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, mask=mask)
+    except JeansError:
+        if not clicks or mask is not None:
+            raise
+        main = None  # nothing found automatically: every point segments its own object
+    found = []
+    if clicks or objects == "all":
+        # A given mask is split before its cleaning, which keeps only pieces of at least
+        # a quarter of the largest one's size: the user said what the objects are.
+        subject = binarise(mask) if mask is not None else None if main is None else main.mask
+        found = [] if subject is None or not subject.any() else split_objects(subject)
+    if not clicks and len(found) <= 1:
+        main.details["box"] = list(_box_of(main))
+        return [main]
+
+    def pick(obj, point=None) -> Silhouette | None:
+        if mask is None:
+            return _object_silhouette(obj, main, point)
+        try:
+            return _framed(segment(pixels, "mask", mask=obj.mask), point)
+        except JeansError:  # a speck of the user's mask, too small to segment
+            if point is None:
+                return None
+            raise
+
+    chosen: list[Silhouette | None] = []
+    picked: set[int] = set()
+    for point in clicks:
+        index = object_at(found, point)
+        if index is None:
+            chosen.append(_framed(segment_at_point(pixels, point), point))
+        elif index not in picked:
+            picked.add(index)
+            chosen.append(pick(found[index], point))
+    if objects == "all":
+        chosen += [pick(obj) for i, obj in enumerate(found) if i not in picked]
+    return [silhouette for silhouette in chosen if silhouette is not None]
+
+
+def _framed(segmentation, point: tuple[float, float] | None = None) -> Silhouette:
+    """A :class:`Silhouette` of one object's :class:`Segmentation` (its bool mask kept)."""
+    from .silhouette.objects import mask_box
+
+    canvas, framing = frame_mask(segmentation.mask)
+    details = {**segmentation.details, "box": list(mask_box(segmentation.mask))}
+    if point is not None:
+        details["point"] = list(point)
+    return Silhouette(segmentation.mask, canvas, framing, segmentation.method, segmentation.contour, details)
+
+
+def _object_silhouette(obj, main: Silhouette, point: tuple[float, float] | None = None) -> Silhouette:
+    """A :class:`Silhouette` of one object split from the main subject's mask."""
+    canvas, framing = frame_mask(obj.mask)
+    details = {"box": list(obj.box), "subject_method": main.method}
+    if point is not None:
+        details["point"] = list(point)
+    return Silhouette(obj.mask, canvas, framing, main.method, obj.contour, details)
 
 
 def fit(
@@ -276,23 +371,71 @@ def figure(silhouette: Silhouette, fit_result=None) -> np.ndarray:
     return render_silhouette_figure(silhouette.mask, silhouette.to_mask(fit_result.vertices), fit_result.garment)
 
 
+def _box_of(silhouette: Silhouette) -> tuple[int, int, int, int]:
+    """The object's bounding box ``(x, y, w, h)`` in image pixels (an SVG's, through its framing)."""
+    if "box" in silhouette.details:
+        return tuple(silhouette.details["box"])
+    from .silhouette.objects import mask_box
+
+    x, y, w, h = mask_box(silhouette.mask)
+    if not silhouette.mask_is_canvas:
+        return x, y, w, h
+    (x0, y0), (x1, y1) = silhouette.framing.to_image(np.array([[x, y], [x + w, y + h]], np.float64))
+    return int(np.floor(x0)), int(np.floor(y0)), int(np.ceil(x1) - np.floor(x0)), int(np.ceil(y1) - np.floor(y0))
+
+
+@dataclass
+class FittedObject:
+    """One object of a result: its silhouette and the garment fitted to it."""
+
+    silhouette: Silhouette
+    fit: object  # FitResult
+
+    def report(self) -> dict:
+        """The object's entry in the report's ``objects`` list."""
+        from .checks import rule_report
+
+        framing = self.silhouette.framing
+        rules = rule_report(self.fit.vertices, self.silhouette.canvas, self.fit.garment)
+        entry = {
+            "box": list(_box_of(self.silhouette)),
+            "method": self.silhouette.method,
+            "vertices_canvas": _rounded(self.fit.vertices),
+            "vertices_image": _rounded(framing.to_image(self.fit.vertices)),
+            "canvas_to_image": _rounded(framing.canvas_to_image),
+            "objective": _round(self.fit.objective),
+            "rules": {k: (_round(v) if isinstance(v, float) else v) for k, v in rules.to_json().items()},
+        }
+        if "point" in self.silhouette.details:
+            entry["point"] = [_round(v) for v in self.silhouette.details["point"]]
+        return entry
+
+
 @dataclass
 class JeansResult:
-    """Everything :func:`apply_jeans` produced."""
+    """Everything :func:`apply_jeans` produced.
+
+    ``silhouette`` and ``fit`` are the main (first) object's; ``objects`` lists every
+    object that got a garment, the main one first.
+    """
 
     image: np.ndarray  # the output picture, uint8
     silhouette: Silhouette
     fit: object  # FitResult
     kind: str  # "silhouette" or "photo"
     source: object | None = None  # LoadedImage for files that were decoded
+    objects: list[FittedObject] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not self.objects:
+            self.objects = [FittedObject(self.silhouette, self.fit)]
 
     def report(self, input_name: str = "", output_name: str = "") -> dict:
-        """The JSON-able report (the CLI's ``--json`` sidecar)."""
-        from .checks import rule_report
-
+        """The JSON-able report (the CLI's ``--json`` sidecar): the top-level fields
+        describe the main object, ``objects`` every object."""
         fit_result = self.fit
         framing = self.silhouette.framing
-        rules = rule_report(fit_result.vertices, self.silhouette.canvas, fit_result.garment)
+        entries = [obj.report() for obj in self.objects]
         return {
             "input": input_name,
             "output": output_name,
@@ -318,7 +461,8 @@ class JeansResult:
             "finished_starts": fit_result.start_ids,
             "start_index": fit_result.start_index,
             "start_objectives": [_round(v) for v in fit_result.start_objectives],
-            "rules": {k: (_round(v) if isinstance(v, float) else v) for k, v in rules.to_json().items()},
+            "rules": entries[0]["rules"],
+            "objects": entries,
             "seconds": round(fit_result.seconds, 3),
         }
 
@@ -343,16 +487,25 @@ def prepare_input(
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
     max_pixels: int = 100_000_000,
-    raw_full_size: bool = False,
-) -> tuple[Silhouette, str, np.ndarray | None, object | None]:
-    """Decode and segment an input: ``(silhouette, kind, pixels, loaded_image)``."""
+    raw_half_size: bool = False,
+    objects: str = "one",
+    points: list[tuple[float, float]] | None = None,
+) -> tuple[list[Silhouette], str, np.ndarray | None, object | None]:
+    """Decode and segment an input: ``(silhouettes, kind, pixels, loaded_image)``.
+
+    Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``
+    are pixels of the photo as displayed, also for a RAW file decoded at half size);
+    silhouette drawings and SVGs give their one shape.
+    """
     if kind not in KINDS:
         raise JeansError(f"unknown input kind {kind!r} (use {', '.join(KINDS)})")
+    if objects not in OBJECTS:
+        raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
     loaded = None
     if isinstance(source, (str, os.PathLike)):
         if Path(source).suffix.lower() in SVG_EXTENSIONS:
-            return read_svg(source), "silhouette", None, None
-        loaded = load_image(source, max_pixels=max_pixels, raw_full_size=raw_full_size)
+            return [read_svg(source)], "silhouette", None, None
+        loaded = load_image(source, max_pixels=max_pixels, raw_half_size=raw_half_size)
         pixels = loaded.pixels
     else:
         pixels = np.asarray(source)
@@ -365,9 +518,22 @@ def prepare_input(
         if alpha is not None or kind == "silhouette":
             if alpha is None:
                 raise JeansError("not a silhouette image (no alpha and not two-toned)")
-            return silhouette_from_alpha(alpha, "drawing"), "silhouette", pixels, loaded
-    silhouette = extract_silhouette(pixels, silhouette_method, threshold=threshold, rect=rect, mask=mask)
-    return silhouette, "photo", pixels, loaded
+            return [silhouette_from_alpha(alpha, "drawing")], "silhouette", pixels, loaded
+    if points and loaded is not None and tuple(loaded.original_size) != pixels.shape[1::-1]:
+        points = _to_decoded(points, loaded.original_size, pixels.shape[1::-1])
+    silhouettes = extract_silhouettes(
+        pixels, silhouette_method, objects=objects, points=points, threshold=threshold, rect=rect, mask=mask
+    )
+    return silhouettes, "photo", pixels, loaded
+
+
+def _to_decoded(points, original_size: tuple[int, int], size: tuple[int, int]) -> list[tuple[float, float]]:
+    """Points in pixels of the photo as displayed -> pixels of its (reduced) decoded copy."""
+    from .silhouette.objects import check_point
+
+    width, height = original_size
+    scale = np.array([size[0] / width, size[1] / height])
+    return [tuple(np.asarray(check_point(point, (height, width))) * scale) for point in points]
 
 
 def apply_jeans(
@@ -387,23 +553,34 @@ def apply_jeans(
     style: str = "denim",
     clip: bool = True,
     max_pixels: int = 100_000_000,
-    raw_full_size: bool = False,
+    raw_half_size: bool = False,
+    objects: str = "one",
+    points: list[tuple[float, float]] | None = None,
 ) -> JeansResult:
     """Decode, segment, fit and composite in one call.
 
     ``source``: a path (photo, RAW, silhouette PNG or SVG) or a uint8 image array.
     Silhouette drawings give the paper's figure (black shape, blue jeans on white);
-    photos get denim painted on at full resolution.
+    photos get denim painted on at full resolution. ``objects="all"`` gives every
+    separate object of a photo its own garment; ``points`` ((x, y) pixels, like clicks)
+    pick the objects (see :func:`extract_silhouettes`). RAW files are decoded at the
+    camera's full size unless ``raw_half_size``.
     """
-    silhouette, resolved_kind, pixels, loaded = prepare_input(
-        source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_full_size
+    silhouettes, resolved_kind, pixels, loaded = prepare_input(
+        source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_half_size, objects, points
     )
-    fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts)
-    if resolved_kind == "silhouette":
-        image = figure(silhouette, fit_result)
-    else:
-        image = composite(pixels, fit_result, silhouette, style=style, clip=clip, seed=seed)
-    return JeansResult(image, silhouette, fit_result, resolved_kind, loaded)
+    fitted = []
+    image = pixels
+    for index, silhouette in enumerate(silhouettes):
+        fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts)
+        fitted.append(FittedObject(silhouette, fit_result))
+        if resolved_kind == "silhouette":
+            image = figure(silhouette, fit_result)
+        else:
+            # Each object gets its own denim noise, painted over the objects before it.
+            image = composite(image, fit_result, silhouette, style=style, clip=clip, seed=seed + index)
+    main = fitted[0]
+    return JeansResult(image, main.silhouette, main.fit, resolved_kind, loaded, fitted)
 
 
 __all__ = [
@@ -413,6 +590,9 @@ __all__ = [
     "apply_jeans",
     "composite",
     "extract_silhouette",
+    "extract_silhouettes",
+    "FittedObject",
+    "OBJECTS",
     "draw_figure",
     "draw_garment",
     "figure",

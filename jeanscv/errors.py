@@ -9,3 +9,8 @@ class JeansError(ValueError):
     The message is one line that names the reason (the CLI prefixes the file name),
     so it can be shown as ``jeanscv: FILE: reason`` without a traceback.
     """
+
+
+class OptionError(JeansError):
+    """An option that does not fit this input, such as a point outside the image: the
+    CLI reports it as a usage error (exit status 2)."""

@@ -109,10 +109,15 @@ def rationals(values: np.ndarray, denominator: int = 10000) -> tuple[int, ...]:
 
 def make_dng() -> Path:
     """Mosaic the coffee photo into a 12-bit RGGB Bayer DNG with orientation 6."""
-    displayed = skdata.coffee()  # (400, 600, 3) uint8, sRGB
+    return write_dng(skdata.coffee(), OUT_DIR / "coffee.dng")  # (400, 600, 3) uint8, sRGB
+
+
+def write_dng(displayed: np.ndarray, path: Path) -> Path:
+    """Mosaic an (H, W, 3) uint8 sRGB photo (even H and W) into a 12-bit RGGB Bayer DNG
+    at ``path``, stored sideways with orientation 6, so it displays as ``displayed``."""
     linear = srgb_to_linear(displayed.astype(np.float64) / 255.0)
     camera = linear @ CAMERA_FROM_SRGB.T
-    stored = np.rot90(camera, k=1)  # (600, 400, 3): orientation 6 rotates it back
+    stored = np.rot90(camera, k=1)  # (W, H, 3): orientation 6 rotates it back
     h, w, _ = stored.shape
     channel = np.empty((h, w), dtype=np.intp)  # RGGB: which colour each photosite sees
     channel[0::2, 0::2] = 0
@@ -146,7 +151,6 @@ def make_dng() -> Path:
         (50778, "H", 1, 21, True),  # CalibrationIlluminant1: D65
         (50728, "2I", 3, rationals(as_shot_neutral), True),  # AsShotNeutral
     ]
-    path = OUT_DIR / "coffee.dng"
     tifffile.imwrite(
         path,
         raw,

@@ -272,9 +272,18 @@ def test_raw_gives_jpeg_and_rgba_png_keeps_alpha(tmp_path, run_cli):
     result = run_cli(samples / "coffee.dng", *FAST, "-o", tmp_path, "-v", "--style", "flat")
     assert result.exit_code == 0, result.stderr
     with Image.open(tmp_path / "coffee.jeans.jpg") as im:
-        assert im.format == "JPEG" and im.size == (300, 200)  # RAW decodes at half size by default
+        assert im.format == "JPEG" and im.size == (600, 400)  # the camera's full size by default
     assert "photo (silhouette: " in result.stderr and "device cpu" in result.stderr
     assert "terms: center=" in result.stderr
+    result = run_cli(samples / "coffee.dng", *FAST, "-o", tmp_path / "half", "-q", "--raw-half-size")
+    assert result.exit_code == 0, result.stderr
+    with Image.open(tmp_path / "half" / "coffee.jeans.jpg") as im:
+        assert im.size == (300, 200)
+    # --raw-full-size, the old opt-in, is still accepted (full size is the default now).
+    result = run_cli(samples / "coffee.dng", *FAST, "-o", tmp_path / "full", "-q", "--raw-full-size")
+    assert result.exit_code == 0, result.stderr
+    with Image.open(tmp_path / "full" / "coffee.jeans.jpg") as im:
+        assert im.size == (600, 400)
 
     result = run_cli(samples / "horse_cutout.png", *FAST, "-o", tmp_path, "--kind", "photo", "--json", "-q")
     assert result.exit_code == 0, result.stderr

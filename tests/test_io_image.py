@@ -368,14 +368,14 @@ def block_means(pixels: np.ndarray, rows: int, cols: int) -> np.ndarray:
 
 
 def test_sample_dng_decodes_upright_with_the_photo_colours() -> None:
-    photo = np.asarray(Image.open(SAMPLES / "coffee.jpg").convert("RGB").resize((300, 200), Image.BOX))
+    photo = np.asarray(Image.open(SAMPLES / "coffee.jpg").convert("RGB"))
 
     loaded = load_image(SAMPLES / "coffee.dng")
 
     assert loaded.is_raw and loaded.source_format == "DNG"
     assert loaded.exif_orientation == 6
     assert loaded.original_size == (600, 400)  # stored 400x600 portrait, shown landscape
-    assert loaded.pixels.shape == (200, 300, 3)  # half size by default
+    assert loaded.pixels.shape == (400, 600, 3)  # the camera's full size by default
     assert not loaded.alpha_meaningful
     # The DNG was mosaicked from this photo through camera gains and colour cross-talk;
     # white balance, colour matrix and orientation must all undo that.
@@ -383,10 +383,13 @@ def test_sample_dng_decodes_upright_with_the_photo_colours() -> None:
     assert np.abs(block_means(loaded.pixels, 10, 15) - block_means(photo, 10, 15)).max() < 12
 
 
-def test_sample_dng_full_size() -> None:
-    loaded = load_image(SAMPLES / "coffee.dng", raw_full_size=True)
-    assert loaded.pixels.shape == (400, 600, 3)
+def test_sample_dng_half_size() -> None:
+    loaded = load_image(SAMPLES / "coffee.dng", raw_half_size=True)
+    assert loaded.pixels.shape == (200, 300, 3)  # each 2x2 Bayer block is one pixel
     assert loaded.original_size == (600, 400)
+    full = load_image(SAMPLES / "coffee.dng").pixels
+    halved = full.astype(np.float64).reshape(200, 2, 300, 2, 3).mean(axis=(1, 3))
+    assert np.abs(block_means(loaded.pixels, 10, 15) - block_means(halved, 10, 15)).max() < 12
 
 
 @pytest.mark.parametrize(

@@ -76,7 +76,8 @@ class LoadedImage:
             ``"GIF"``, or for RAW files the upper-case extension (``"DNG"``, ``"NEF"``...).
         is_raw: True when decoded from a camera RAW file.
         original_size: ``(width, height)`` of the full-resolution image as displayed.
-            Equals the size of ``pixels`` except for RAW files decoded at half size.
+            Equals the size of ``pixels`` except for RAW files decoded at half size
+            (``raw_half_size``).
         exif_orientation: the file's EXIF orientation, 1..8 (1 = stored upright).
         icc_profile: the embedded ICC profile, only if it describes RGB (so it is
             still valid for ``pixels``); else None.
@@ -94,13 +95,14 @@ class LoadedImage:
     exif: bytes | None = None
 
 
-def load_image(path: str | Path, max_pixels: int = 100_000_000, raw_full_size: bool = False) -> LoadedImage:
+def load_image(path: str | Path, max_pixels: int = 100_000_000, raw_half_size: bool = False) -> LoadedImage:
     """Decode a photo or camera RAW file into an upright 8-bit RGB(A) ``LoadedImage``.
 
     ``max_pixels`` caps width x height, checked from the file header before any
-    pixel memory is allocated. RAW files are decoded at half resolution (each 2x2
-    Bayer block becomes one pixel: fast, and plenty for fitting) unless
-    ``raw_full_size``. Raises ``JeansError`` for every unreadable or unsuitable file.
+    pixel memory is allocated. RAW files are decoded at the camera's full resolution,
+    or with ``raw_half_size`` at half (each 2x2 Bayer block becomes one pixel: faster,
+    and plenty for fitting). Raises ``JeansError`` for every unreadable or
+    unsuitable file.
     """
     if max_pixels < 1:
         raise JeansError("--max-pixels must be at least 1")
@@ -112,7 +114,7 @@ def load_image(path: str | Path, max_pixels: int = 100_000_000, raw_full_size: b
     file = _open_nonempty(path)
     if path.suffix.lower() in RAW_EXTENSIONS:
         file.close()  # LibRaw opens the file itself
-        return _load_raw(path, max_pixels, raw_full_size)
+        return _load_raw(path, max_pixels, half_size=raw_half_size)
     with file:
         return _load_pillow(file, max_pixels)
 
@@ -341,7 +343,7 @@ def _libraw_stderr_silenced():
         os.close(saved)
 
 
-def _load_raw(path: Path, max_pixels: int, full_size: bool) -> LoadedImage:
+def _load_raw(path: Path, max_pixels: int, half_size: bool) -> LoadedImage:
     """Demosaic a camera RAW file with LibRaw: camera white balance, sRGB, 8 bits."""
     import rawpy  # heavy; only loaded when a RAW file is opened
 
@@ -366,7 +368,7 @@ def _load_raw(path: Path, max_pixels: int, full_size: bool) -> LoadedImage:
                     use_camera_wb=True,
                     output_color=rawpy.ColorSpace.sRGB,
                     output_bps=8,
-                    half_size=not full_size,
+                    half_size=half_size,
                     gamma=(2.4, 12.92),  # the sRGB curve (LibRaw's default is BT.709)
                 )
         except rawpy.LibRawError as exc:
