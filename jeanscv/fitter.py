@@ -14,7 +14,7 @@ from torch import Tensor
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .loss import PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES, jalgorithm_terms, weighted_total
+from .loss import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES, jalgorithm_terms, weighted_total
 from .presets import Preset, get_preset
 
 # (scale, rotation in degrees) of the starts after the paper's own initialisation,
@@ -325,7 +325,7 @@ def _fit(
         vertices=vertices.cpu().numpy(),
         objective=float(totals[best]),
         terms={k: float(terms[k][best]) for k in TERM_NAMES},
-        paper_terms={k: float(paper[k][0]) for k in TERM_NAMES},
+        paper_terms={k: float(paper[k][0]) for k in PAPER_TERMS},
         paper_total=paper_total,
         preset=preset,
         garment=garment,

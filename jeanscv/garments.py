@@ -86,6 +86,17 @@ class Garment:
         return np.stack([np.arange(n), (np.arange(n) + 1) % n], axis=1)
 
     @property
+    def hems(self) -> tuple[int, int]:
+        """The far ends of the two outer seams: the neighbour of each waist vertex that is
+        not the other waist vertex (jeans: 0 and 3, the outer hems). Their midpoint minus
+        the waist midpoint is the garment's "down"."""
+        n = self.num_vertices
+        left, right = self.waist
+        return tuple(
+            next(v for v in ((w - 1) % n, (w + 1) % n) if v != other) for w, other in ((left, right), (right, left))
+        )
+
+    @property
     def closed_edges(self) -> tuple[int, ...]:
         return tuple(i for i in range(self.num_vertices) if i not in self.open_edges)
 

@@ -1,4 +1,5 @@
-"""The jalgorithm's loss: the paper's seven terms (its equations 2-10) in torch.
+"""The jalgorithm's loss: the paper's seven terms (its equations 2-10) in torch,
+and our eighth, ``upright`` (weight 0 in the paper's objective).
 
 All terms take vertices in canvas pixels ``(B, N, 2)`` and a silhouette ``S`` of
 shape ``(256, 256)`` or ``(B, 256, 256)``; each term is returned separately as a
@@ -24,7 +25,8 @@ from .errors import JeansError
 from .garments import JEANS, Garment
 from .render import coverage_from_winding, polygon_edges, rasterize
 
-TERM_NAMES = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
+PAPER_TERMS = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
+TERM_NAMES = PAPER_TERMS + ("upright",)
 
 #: The weights printed in the paper (its equation 1).
 PAPER_WEIGHTS = {
@@ -38,6 +40,9 @@ PAPER_WEIGHTS = {
 }
 
 STROKE_HALF_WIDTH = 2.5
+#: ``upright`` is 0 within this angle of upright and saturates beyond ``UPRIGHT_SATURATE``.
+UPRIGHT_FREE_DEGREES = 20.0
+UPRIGHT_SATURATE_DEGREES = 60.0
 INTER_PAIRS = ("all", "non_adjacent")
 _EPS = 1e-6
 
@@ -218,6 +223,28 @@ def _union_on_body(shared: SharedPixels, areas: Tensor, on_body: Tensor, ids: Te
     return (on_body.index_select(1, ids).sum(dim=1) - excess_on_body) / union_area.clamp(min=_EPS)
 
 
+def upright_term(vertices: Tensor, garment: Garment = JEANS) -> Tensor:
+    """How far the garment is from hanging upright, ``(B, N, 2)`` -> ``(B,)``.
+
+    With ``d`` = hems midpoint - waist midpoint and ``w`` = the waist vector (see
+    :attr:`Garment.hems`), ``c = (d_y / |d| + |w_x| / |w|) / 2`` is 1 for an upright
+    garment (legs straight down the image, waistband level) and ``cos t`` for one turned
+    by ``t``. The term is ``clamp(cos 20deg - c, 0, cos 20deg - cos 60deg)``: free within
+    20 degrees of upright, a pull towards upright up to 60 degrees, and flat beyond, so
+    that it ranks lying and upside-down starts equally and never drags them through a
+    half turn (pixels or normalised coordinates give the same value).
+    """
+    free = float(np.cos(np.radians(UPRIGHT_FREE_DEGREES)))
+    saturated = free - float(np.cos(np.radians(UPRIGHT_SATURATE_DEGREES)))
+    waist_a, waist_b = vertices[:, garment.waist[0]], vertices[:, garment.waist[1]]
+    hem_a, hem_b = vertices[:, garment.hems[0]], vertices[:, garment.hems[1]]
+    down = (hem_a + hem_b - waist_a - waist_b) / 2
+    across = waist_b - waist_a
+    down_cos = down[:, 1] / down.norm(dim=-1).clamp(min=_EPS)
+    level_cos = across[:, 0].abs() / across.norm(dim=-1).clamp(min=_EPS)
+    return torch.clamp(free - (down_cos + level_cos) / 2, min=0.0, max=saturated)
+
+
 def jalgorithm_terms(
     vertices: Tensor,
     silhouette: Tensor,
@@ -225,7 +252,7 @@ def jalgorithm_terms(
     inter_pairs: str = "all",
     stroke_half_width: float = STROKE_HALF_WIDTH,
 ) -> dict[str, Tensor]:
-    """The seven terms of the paper's loss, unweighted, one value per candidate.
+    """The paper's seven terms and ``upright``, unweighted, one value per candidate.
 
     Args:
         vertices: ``(B, N, 2)`` garment vertices in canvas pixels, template order.
@@ -239,7 +266,7 @@ def jalgorithm_terms(
 
     Returns:
         ``{name: (B,) tensor}`` for ``center, coverage, rigid, open, closed, inter,
-        inside``.
+        inside, upright`` (:func:`upright_term`).
     """
     if inter_pairs not in INTER_PAIRS:
         raise JeansError(f"unknown inter_pairs {inter_pairs!r} (use {' or '.join(INTER_PAIRS)})")
@@ -298,6 +325,7 @@ def jalgorithm_terms(
         "closed": closed_term,
         "inter": inter,
         "inside": inside,
+        "upright": upright_term(vertices, garment),
     }
 
 

@@ -18,6 +18,7 @@ from jeanscv.loss import (
     JalgorithmLoss,
     affine_residual_operator,
     jalgorithm_terms,
+    upright_term,
     weighted_total,
 )
 from jeanscv.synthetic import silhouette_zoo
@@ -395,3 +396,34 @@ def test_terms_on_a_twice_coarser_canvas_with_half_width_strokes_agree(zoo, name
     for term in ("coverage", "open", "closed", "inside"):
         assert float(coarse[term]) == pytest.approx(float(full[term]), abs=0.01), term
     assert float(coarse["inter"]) == pytest.approx(float(full["inter"]), abs=0.003)
+
+
+# ---------------------------------------------------------------- upright
+
+
+def _turned(degrees: float, scale: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
+    """The jeans template stretched by ``scale`` (x, y) then turned by ``degrees``
+    (clockwise on screen, y down) about the canvas centre, ``(1, 8, 2)``."""
+    t = np.radians(degrees)
+    rotation = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    return (((JEANS.template - 128) * scale) @ rotation.T + 128)[None]
+
+
+@pytest.mark.parametrize(
+    "degrees, expected",
+    [(0, 0.0), (15, 0.0), (-20, 0.0), (30, np.cos(np.radians(20)) - np.cos(np.radians(30))),
+     (45, np.cos(np.radians(20)) - np.cos(np.radians(45))), (60, np.cos(np.radians(20)) - 0.5),
+     (90, np.cos(np.radians(20)) - 0.5), (180, np.cos(np.radians(20)) - 0.5)],
+)
+def test_upright_term_of_a_turned_template(degrees: float, expected: float) -> None:
+    """c = cos(turn) for a rigidly turned garment; stretching it (squat, wide jeans) changes nothing."""
+    for scale in ((1.0, 1.0), (2.0, 0.5)):
+        value = float(upright_term(_t(_turned(degrees, scale)))[0])
+        assert value == pytest.approx(expected, abs=1e-12)
+
+
+def test_upright_term_gradcheck_and_in_the_terms() -> None:
+    x = _t(_turned(40.0) + np.random.default_rng(4).normal(0, 2, (1, 8, 2))).requires_grad_(True)
+    assert torch.autograd.gradcheck(upright_term, (x,))
+    s = _t(_smooth_silhouette(256, (128, 140), (70, 95), 6.0))
+    assert float(jalgorithm_terms(x, s)["upright"][0]) == float(upright_term(x)[0])
