@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .saliency import SuperpixelGraph, saliency_map
+from .saliency import SuperpixelGraph, focus, saliency_map
 
 _SUPERPIXEL_SIZE = 12  # SLIC region size, pixels (about 300 superpixels at 240x180)
 _RECT_INSET = 0.1  # the centred rectangle leaves this share of each side to the background
@@ -46,6 +46,11 @@ SALIENCY_HYPOTHESES = (
     ("saliency_trimap", "sum", 4.0, "trimap"),
     ("barrier_trimap", "minimax", 0.0, "trimap"),
 )
+# The focus cue (:func:`jeanscv.silhouette.saliency.focus`) weights the geodesic-sum maps
+# only. On the 18 real photos: mean IoU 0.619 against 0.615 without it (rifle1 0.55 ->
+# 0.65, girl 0.63 -> 0.59); on the barrier map too, 0.623, but a person on a printed
+# page (sharp text all round) fell to 0.88.
+_FOCUS_PATHS = ("sum",)
 
 
 @dataclass
@@ -126,20 +131,23 @@ def saliency_labels(saliency: np.ndarray, seeding: str) -> np.ndarray | None:
     return labels
 
 
-def saliency_candidates(rgb: np.ndarray, cut, finish) -> dict[str, np.ndarray]:
+def saliency_candidates(rgb: np.ndarray, cut, finish, detail: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The saliency hypotheses of a small RGB image: name -> ``finish(mask)``.
 
     ``cut(rgb, labels)``: GrabCut from labels (None when it fails); ``finish``: turns
-    a cut mask into a candidate (upsampled and cleaned).
+    a cut mask into a candidate (upsampled and cleaned). ``detail``: (h, w) high-pass
+    magnitude for the focus cue (see :func:`jeanscv.silhouette.saliency.focus`), or None.
     """
     lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
     graph = SuperpixelGraph.of(lab, _SUPERPIXEL_SIZE)
+    sharpness = None if detail is None else focus(graph, detail)
     maps: dict[tuple[str, float], np.ndarray] = {}
     out = {}
     for name, path_cost, step_floor, seeding in SALIENCY_HYPOTHESES:
         key = (path_cost, step_floor)
         if key not in maps:
-            maps[key] = graph.to_pixels(saliency_map(graph, path_cost, step_floor))
+            weight = sharpness if path_cost in _FOCUS_PATHS else None
+            maps[key] = graph.to_pixels(saliency_map(graph, path_cost, step_floor, weight))
         labels = saliency_labels(maps[key], seeding)
         mask = None if labels is None else _grabcut_labels(rgb, labels, cut)
         if mask is not None:
