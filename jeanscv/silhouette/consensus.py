@@ -47,9 +47,9 @@ SALIENCY_HYPOTHESES = (
     ("barrier_trimap", "minimax", 0.0, "trimap"),
 )
 # The focus cue (:func:`jeanscv.silhouette.saliency.focus`) weights the geodesic-sum maps
-# only. On the 18 real photos: mean IoU 0.619 against 0.615 without it (rifle1 0.55 ->
-# 0.65, girl 0.63 -> 0.59); on the barrier map too, 0.623, but a person on a printed
-# page (sharp text all round) fell to 0.88.
+# only. On the 18 real photos it moves single photos (rifle1 0.55 -> 0.65, girl 0.63 ->
+# 0.60) more than the mean (0.616 -> 0.618); on the barrier map too, a person on a
+# printed page (sharp text all round) fell to 0.88.
 _FOCUS_PATHS = ("sum",)
 
 
@@ -78,14 +78,11 @@ def _otsu_level(values: np.ndarray) -> float:
     return float(level) / 255.0
 
 
-def _grabcut_labels(rgb: np.ndarray, labels: np.ndarray, cut) -> np.ndarray | None:
-    """``cut(rgb, labels)`` (GrabCut, None when it fails) when both classes have
-    samples, else None."""
+def _both_classes(labels: np.ndarray) -> bool:
+    """True when GrabCut labels hold background and subject samples (it needs both)."""
     has_bg = np.isin(labels, (cv2.GC_BGD, cv2.GC_PR_BGD)).any()
     has_fg = np.isin(labels, (cv2.GC_FGD, cv2.GC_PR_FGD)).any()
-    if not (has_bg and has_fg):
-        return None
-    return cut(rgb, labels)
+    return bool(has_bg and has_fg)
 
 
 def rect_labels(shape: tuple[int, int]) -> np.ndarray:
@@ -131,35 +128,27 @@ def saliency_labels(saliency: np.ndarray, seeding: str) -> np.ndarray | None:
     return labels
 
 
-def saliency_candidates(rgb: np.ndarray, cut, finish, detail: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """The saliency hypotheses of a small RGB image: name -> ``finish(mask)``.
+def hypothesis_labels(rgb: np.ndarray, detail: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """GrabCut labels of the centred-rectangle and saliency hypotheses of a small RGB
+    image: name -> (h, w) uint8 labels, leaving out those without both classes.
 
-    ``cut(rgb, labels)``: GrabCut from labels (None when it fails); ``finish``: turns
-    a cut mask into a candidate (upsampled and cleaned). ``detail``: (h, w) high-pass
-    magnitude for the focus cue (see :func:`jeanscv.silhouette.saliency.focus`), or None.
+    ``detail``: (h, w) high-pass magnitude for the focus cue (see
+    :func:`jeanscv.silhouette.saliency.focus`), or None.
     """
+    out = {"rect": rect_labels(rgb.shape[:2])}
     lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
     graph = SuperpixelGraph.of(lab, _SUPERPIXEL_SIZE)
     sharpness = None if detail is None else focus(graph, detail)
     maps: dict[tuple[str, float], np.ndarray] = {}
-    out = {}
     for name, path_cost, step_floor, seeding in SALIENCY_HYPOTHESES:
         key = (path_cost, step_floor)
         if key not in maps:
             weight = sharpness if path_cost in _FOCUS_PATHS else None
             maps[key] = graph.to_pixels(saliency_map(graph, path_cost, step_floor, weight))
         labels = saliency_labels(maps[key], seeding)
-        mask = None if labels is None else _grabcut_labels(rgb, labels, cut)
-        if mask is not None:
-            out[name] = finish(mask)
-    return out
-
-
-def rect_candidate(rgb: np.ndarray, cut, finish) -> np.ndarray | None:
-    """The centred-rectangle hypothesis (``cut`` and ``finish`` as in
-    :func:`saliency_candidates`)."""
-    mask = _grabcut_labels(rgb, rect_labels(rgb.shape[:2]), cut)
-    return None if mask is None else finish(mask)
+        if labels is not None:
+            out[name] = labels
+    return {name: labels for name, labels in out.items() if _both_classes(labels)}
 
 
 def side_contact(mask: np.ndarray) -> float:

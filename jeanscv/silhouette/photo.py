@@ -26,6 +26,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from concurrent.futures import Future, ThreadPoolExecutor
+
 import cv2
 import numpy as np
 
@@ -495,34 +497,67 @@ def _grabcut_or_none(image: np.ndarray, labels: np.ndarray, iterations: int) -> 
         return None
 
 
+class _Inline:
+    """A stand-in for an executor with one thread: runs each job when submitted."""
+
+    def __enter__(self) -> _Inline:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def submit(self, fn, *args) -> Future:
+        job: Future = Future()
+        job.set_result(fn(*args))
+        return job
+
+
+def _hypothesis_pool() -> ThreadPoolExecutor | _Inline:
+    """Threads for the hypotheses' GrabCuts: as many as OpenCV may use, up to 4."""
+    threads = min(4, max(1, cv2.getNumThreads()))
+    return ThreadPoolExecutor(threads) if threads > 1 else _Inline()
+
+
+def _grabcut_hypothesis(scene: _Scene) -> tuple[str, np.ndarray | None]:
+    """(variant, coarse mask or None) of the border-colour GrabCut hypothesis."""
+    try:
+        variant, mask, _ = _grabcut_coarse_best(scene, hypothesis=True)
+    except JeansError:
+        return "colour", None
+    return variant, mask
+
+
 def _auto(rgb: np.ndarray, scene: _Scene, details: dict) -> tuple[np.ndarray, str]:
     """Every hypothesis at coarse resolution, the consensus pick
     (:mod:`jeanscv.silhouette.consensus`) at working resolution: the threshold split as
     it is, a GrabCut hypothesis refined along its boundary."""
-    from .consensus import choose, rect_candidate, saliency_candidates
+    from .consensus import choose, hypothesis_labels
 
-    coarse: dict[str, np.ndarray] = {}
-    threshold_mask = None
-    try:
-        threshold_mask, threshold_info = _threshold(rgb, None, scene)
-        coarse["threshold"] = scene.to_coarse(threshold_mask)
-        details["threshold"] = {k: v for k, v in threshold_info.items() if k not in ("features", "scores")}
-    except JeansError:
-        pass
-    grabcut_variant = "colour"
-    try:
-        grabcut_variant, coarse["grabcut"], _ = _grabcut_coarse_best(scene, hypothesis=True)
-    except JeansError:
-        pass
     small = scene.hypothesis()
-
-    def cut(image: np.ndarray, labels: np.ndarray) -> np.ndarray | None:
-        return _grabcut_or_none(image, labels, _HYPOTHESIS_ITERATIONS)
-
-    rect = rect_candidate(small, cut, scene.from_hypothesis)
-    if rect is not None:
-        coarse["rect"] = rect
-    coarse.update(saliency_candidates(small, cut, scene.from_hypothesis, scene.detail()))
+    labelings = hypothesis_labels(small, scene.detail())
+    # The GrabCuts are independent and OpenCV releases the GIL: cut them side by side on
+    # the threads OpenCV may use (a batch worker gets its share of the cores, often 1).
+    with _hypothesis_pool() as pool:
+        grabcut_job = pool.submit(_grabcut_hypothesis, scene)
+        cut_jobs = {
+            name: pool.submit(_grabcut_or_none, small, labels, _HYPOTHESIS_ITERATIONS)
+            for name, labels in labelings.items()
+        }
+        coarse: dict[str, np.ndarray] = {}
+        threshold_mask = None
+        try:
+            threshold_mask, threshold_info = _threshold(rgb, None, scene)
+            coarse["threshold"] = scene.to_coarse(threshold_mask)
+            details["threshold"] = {k: v for k, v in threshold_info.items() if k not in ("features", "scores")}
+        except JeansError:
+            pass
+        grabcut_variant, grabcut_mask = grabcut_job.result()
+        if grabcut_mask is not None:
+            coarse["grabcut"] = grabcut_mask
+        for name, job in cut_jobs.items():
+            mask = job.result()
+            if mask is not None:
+                coarse[name] = scene.from_hypothesis(mask)
     usable = {
         name: m for name, m in coarse.items()
         if m.mean() >= _MIN_FRACTION and not fills_frame(m) and rim_fraction(m) <= RIM_ONLY
