@@ -40,10 +40,11 @@ _DECISIVE = 0.85
 # (name, path cost, step floor, seeding): the saliency hypotheses. The geodesic sum with a
 # small floor is the paper's measure made tolerant of texture; the barrier (minimax) form
 # keeps gradually shaded backgrounds connected; "box" trusts saliency only for where the
-# subject is, "trimap" also for which pixels are surely subject or background.
+# subject is, "trimap" also for which pixels are surely subject or background. A trimap
+# from the geodesic-sum map too was dropped: it won no real photo, and without it the
+# real photos' mean IoU is the same (0.618) for one GrabCut less.
 SALIENCY_HYPOTHESES = (
     ("saliency_box", "sum", 4.0, "box"),
-    ("saliency_trimap", "sum", 4.0, "trimap"),
     ("barrier_trimap", "minimax", 0.0, "trimap"),
 )
 # The focus cue (:func:`jeanscv.silhouette.saliency.focus`) weights the geodesic-sum maps
