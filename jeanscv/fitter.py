@@ -15,7 +15,7 @@ from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
 from .loss import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES, jalgorithm_terms, weighted_total
-from .presets import Preset, UprightPlan, get_preset
+from .presets import Preset, get_preset
 
 # (scale, rotation in degrees) of the starts after the paper's own initialisation,
 # around the waistband centre moved to the canvas centre. They cover small and large
@@ -93,12 +93,16 @@ class FitResult:
 
 def preset_placements(preset: Preset, starts: int | None = None) -> tuple[tuple[float, ...], ...]:
     """The ``(scale, degrees[, aspect])`` of starts 1.. of ``preset``: its placements (or
-    :data:`DEFAULT_PLACEMENTS`) cycled to ``starts`` (default ``preset.starts``) starts in
-    all, then its upright plan's starts."""
-    base = preset.placements or DEFAULT_PLACEMENTS
-    count = max(1, preset.starts if starts is None else starts)
-    cycled = tuple(base[k % len(base)] for k in range(count - 1))
-    return cycled + (preset.upright.starts if preset.upright else ())
+    :data:`DEFAULT_PLACEMENTS`), cut or cycled to ``starts`` starts in all (default
+    ``preset.starts``). An upright plan's starts follow the preset's own ``starts - 1``
+    and count in ``starts`` (``starts=1`` is the paper's single start either way)."""
+    placements = preset.placements or DEFAULT_PLACEMENTS
+    count = preset.starts
+    if preset.upright and preset.upright.starts:
+        placements = tuple(placements[k % len(placements)] for k in range(preset.starts - 1)) + preset.upright.starts
+        count = len(placements) + 1
+    count = max(1, count if starts is None else starts)
+    return tuple(placements[k % len(placements)] for k in range(count - 1))
 
 
 def initial_placements(
@@ -247,17 +251,28 @@ def _survivors(objectives: np.ndarray, postures: list[int], preset: Preset) -> n
     return np.sort(np.asarray(order[: preset.keep], dtype=np.int64))
 
 
-def _upright_survivors(objectives: np.ndarray, tilts: list[float], plan: UprightPlan) -> np.ndarray:
-    """Sorted indices of the starts that go on under an upright plan: its ``keep_upright``
-    best upright starts and ``keep_tilted`` best others, by objective, topped up from
-    the others (or the upright ones) when one kind runs short; diverged starts last."""
+def _upright_survivors(objectives: np.ndarray, tilts: list[float], max_tilt: float, upright: int, tilted: int) -> np.ndarray:
+    """Sorted indices of the starts that go on under an upright plan: the ``upright`` best
+    starts tilted at most ``max_tilt`` degrees and the ``tilted`` best others, by objective,
+    topped up from the others (or the upright ones) when one kind runs short; diverged
+    starts last."""
     order = [int(i) for i in np.argsort(np.nan_to_num(objectives, nan=math.inf), kind="stable")]
-    upright = [i for i in order if tilts[i] <= plan.max_tilt and np.isfinite(objectives[i])]
-    tilted = [i for i in order if i not in upright]
-    count = plan.keep_upright + plan.keep_tilted
-    chosen = upright[: plan.keep_upright] + tilted[: plan.keep_tilted]
-    chosen += [i for i in order if i not in chosen][: count - len(chosen)]
+    upright_order = [i for i in order if tilts[i] <= max_tilt and np.isfinite(objectives[i])]
+    tilted_order = [i for i in order if i not in upright_order]
+    chosen = upright_order[:upright] + tilted_order[:tilted]
+    chosen += [i for i in order if i not in chosen][: upright + tilted - len(chosen)]
     return np.sort(np.asarray(chosen, dtype=np.int64))
+
+
+def _prunings(preset: Preset, iterations: int, num_starts: int) -> dict[int, tuple[int, int] | None]:
+    """``{step: survivors}`` after which steps the batch shrinks: ``(upright, tilted)``
+    counts under an upright plan, else None for the preset's ``keep``."""
+    if preset.upright:
+        return {int(iterations * fraction): (up, tilted) for fraction, up, tilted in preset.upright.prunings
+                if up + tilted < num_starts}
+    if preset.keep and preset.keep < num_starts:
+        return {int(iterations * preset.prune_fraction): None}
+    return {}
 
 
 @contextmanager
@@ -291,8 +306,8 @@ def fit(
     All starts are optimised together as one batch with Adam on normalised
     coordinates; after ``preset.prune_fraction`` of the iterations only the
     ``preset.keep`` best go on (or those of its upright plan), and the winner is chosen
-    by ``preset.select``. ``starts`` replaces ``preset.starts``; an upright plan's
-    starts come in addition. ``posture``: ``upright`` (the preset's upright plan, if it
+    by ``preset.select``. ``starts``: how many starts (default: the preset's, with its
+    upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the preset's upright plan, if it
     has one) or ``any`` (:meth:`Preset.with_posture`).
     ``threads``: torch threads during the fit (None leaves torch's setting).
     """
@@ -324,8 +339,8 @@ def _fit(
     path = np.full((iterations + 1, num_starts, garment.num_vertices, 2), np.nan)
     path[0] = init.cpu().numpy()
     active = np.arange(num_starts)  # which starts are still optimised
-    keep = preset.upright.keep_upright + preset.upright.keep_tilted if preset.upright else preset.keep
-    prune_step = int(iterations * preset.prune_fraction) if keep and keep < num_starts else -1
+    prunings = _prunings(preset, iterations, num_starts)
+    prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
 
     def objective(pixels: Tensor, target: Tensor) -> tuple[Tensor, dict[str, Tensor]]:
         half_width = STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
@@ -352,11 +367,11 @@ def _fit(
         optimizer.step(torch.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0))
         history[step, active] = total.detach().cpu().numpy()
         path[step + 1, active] = (optimizer.params * CANVAS_SIZE).cpu().numpy()
-        if step == prune_step:
+        if step in prunings:
             # Successive halving: keep optimising only the most promising starts.
             if preset.upright:
                 tilts = [tilt_degrees(v, garment) for v in path[step + 1, active]]
-                order = _upright_survivors(history[step, active], tilts, preset.upright)
+                order = _upright_survivors(history[step, active], tilts, preset.upright.max_tilt, *prunings[step])
             else:
                 postures = [posture(v, garment) for v in path[step + 1, active]]
                 order = _survivors(history[step, active], postures, preset)

@@ -86,7 +86,8 @@ def test_every_garment_fits(name, cape):
     assert result.garment is garment
     before = _initial_objectives(garment, silhouette)
     assert result.objective < before[result.start_index] - 1.0
-    assert result.objective < before.min()
+    # The rules may pick a start other than the lowest (an upright one), so compare the best.
+    assert min(result.start_objectives) < before.min()
 
 
 @pytest.mark.parametrize("name", ["jeans", "shorts", "skirt", "cape"])

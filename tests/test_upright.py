@@ -15,7 +15,7 @@ from jeanscv.checks import rule_report
 from jeanscv.errors import JeansError
 from jeanscv.fitter import _upright_survivors, fit, initial_placements, posture_name, tilt_degrees
 from jeanscv.garments import JEANS
-from jeanscv.presets import UprightPlan, get_preset
+from jeanscv.presets import get_preset
 from jeanscv.synthetic import random_creature, silhouette_zoo
 
 # Fits of the default preset as it was before the upright plan (main at b493177, seed 0,
@@ -106,15 +106,15 @@ def test_squat_starts_are_wide_and_upright():
 
 
 def test_pruning_keeps_upright_and_tilted_starts():
-    plan = UprightPlan(keep_upright=2, keep_tilted=1)
     objectives = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
     tilts = [90.0, 170.0, 10.0, 95.0, 20.0, 5.0]
     # Upright: 2 and 4 are the best two (5 is dropped); tilted: 0 is the best.
-    assert _upright_survivors(objectives, tilts, plan).tolist() == [0, 2, 4]
+    assert _upright_survivors(objectives, tilts, 30.0, 2, 1).tolist() == [0, 2, 4]
+    assert _upright_survivors(objectives, tilts, 8.0, 1, 1).tolist() == [0, 5]
     # One upright start only: the best two tilted ones fill the places.
-    assert _upright_survivors(objectives, [90, 170, 10, 95, 100, 120], plan).tolist() == [0, 1, 2]
+    assert _upright_survivors(objectives, [90, 170, 10, 95, 100, 120], 30.0, 2, 1).tolist() == [0, 1, 2]
     # A diverged start is never kept before a finite one.
-    assert _upright_survivors(np.array([np.nan, 1.0, 2.0, 3.0]), [0, 0, 90, 90], plan).tolist() == [1, 2, 3]
+    assert _upright_survivors(np.array([np.nan, 1.0, 2.0, 3.0]), [0, 0, 90, 90], 30.0, 2, 1).tolist() == [1, 2, 3]
 
 
 def test_json_tilt_matches_the_reported_vertices(tmp_path, run_cli):
