@@ -307,8 +307,8 @@ def fit(
     coordinates; after ``preset.prune_fraction`` of the iterations only the
     ``preset.keep`` best go on (or those of its upright plan), and the winner is chosen
     by ``preset.select``. ``starts``: how many starts (default: the preset's, with its
-    upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the preset's upright plan, if it
-    has one) or ``any`` (:meth:`Preset.with_posture`).
+    upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the
+    preset's upright plan, if it has one) or ``any`` (:meth:`Preset.with_posture`).
     ``threads``: torch threads during the fit (None leaves torch's setting).
     """
     preset = (get_preset(preset) if isinstance(preset, str) else preset).with_posture(posture)
