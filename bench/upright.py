@@ -1,13 +1,15 @@
 """Do the jeans hang upright? The default preset with ``posture="upright"`` against
 ``posture="any"`` (the earlier selection), back to back in one run.
 
-    PYTHONPATH=. python bench/upright.py [--only photos,silhouettes,shapes,paper] [--overlays DIR]
+    PYTHONPATH=. python bench/upright.py [--only photos,synthetic,silhouettes,shapes,paper] [--overlays DIR]
 
 Counts, per posture, the fits that are upright (tilt <= 30 degrees, see
 ``jeanscv.fitter.tilt_degrees``) and pass all six rule checks on:
 
 - the real photos of ``../shared/real_photos`` through the real pipeline (decode,
   segmentation, framing, fit; each photo segmented once, fitted both ways);
+- the test suite's synthetic photos (``tests/synthetic_photos.py``: procedural and paper
+  shapes in real textures on real backgrounds, seeds 2023 and 7), the same way;
 - 16 silhouettes: the paper's 7 and the 9 of ``tests/upright_shapes.py``;
 - the 60 shapes of ``bench/presets_report.py`` and ``bench/unseen_shapes.py`` (all six
   checks only);
@@ -34,6 +36,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from presets_report import PAPER_SHAPES, SHARED, load_shapes  # noqa: E402
 from real_photo_set import photo_paths  # noqa: E402
+from synthetic_photos import photo_set  # noqa: E402
 from upright_shapes import upright_shapes  # noqa: E402
 
 from jeanscv.api import draw_figure  # noqa: E402
@@ -82,20 +85,20 @@ def _row(name: str, fits: dict[str, tuple]) -> str:
     return f"| {name} | " + " | ".join(_cell(tilt, passed) for _, tilt, passed in fits.values()) + " |"
 
 
-def real_photos(tally: Tally, overlays: Path | None) -> None:
+def photos(tally: Tally, named_pixels, overlays: Path | None) -> None:
+    """Each ``(name, pixels)`` through segmentation and framing, then fitted both ways."""
     import jeanscv
 
     print("\n| photo | posture any | posture upright |\n| --- | --- | --- |")
-    for path in photo_paths():
-        pixels = jeanscv.load_image(path).pixels[..., :3]
+    for name, pixels in named_pixels:
         try:
             silhouette = jeanscv.extract_silhouette(pixels)
         except jeanscv.JeansError as error:
-            print(f"| {path.stem} | {error} | |")
+            print(f"| {name} | {error} | |")
             tally.count += 1
             continue
         fits = tally.fit_both(silhouette.canvas)
-        print(_row(path.stem, fits), flush=True)
+        print(_row(name, fits), flush=True)
         if overlays is not None:
             # The canvas figures, posture any | posture upright.
             tiles = [Image.fromarray(draw_figure(silhouette.canvas, result.vertices)) for result, _, _ in fits.values()]
@@ -103,7 +106,22 @@ def real_photos(tally: Tally, overlays: Path | None) -> None:
             sheet.paste(tiles[0], (0, 0))
             sheet.paste(tiles[1], (256 + 8, 0))
             overlays.mkdir(parents=True, exist_ok=True)
-            sheet.save(overlays / f"{path.stem}.png")
+            sheet.save(overlays / f"{name}.png")
+
+
+def real_photos():
+    """``(stem, RGB pixels)`` of the shared real photos, decoded as the CLI decodes them."""
+    import jeanscv
+
+    for path in photo_paths():
+        yield path.stem, jeanscv.load_image(path).pixels[..., :3]
+
+
+def synthetic_photos(seeds=(2023, 7)):
+    """``(name, RGB pixels)`` of the test suite's textured photos (``tests/synthetic_photos.py``)."""
+    for seed in seeds:
+        for case in photo_set(seed):
+            yield f"{case.name}:{seed}", case.image
 
 
 def silhouettes(tally: Tally) -> None:
@@ -155,7 +173,7 @@ def report(label: str, tally: Tally) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--only", default="photos,silhouettes,shapes,paper")
+    parser.add_argument("--only", default="photos,synthetic,silhouettes,shapes,paper")
     parser.add_argument("--overlays", type=Path, help="write each photo's two fits here as PNG")
     args = parser.parse_args()
     parts = set(args.only.split(","))
@@ -163,7 +181,10 @@ def main() -> None:
     tallies = {}
     if "photos" in parts and photo_paths():
         tallies["real photos"] = Tally()
-        real_photos(tallies["real photos"], args.overlays)
+        photos(tallies["real photos"], real_photos(), args.overlays)
+    if "synthetic" in parts:
+        tallies["synthetic photos"] = Tally()
+        photos(tallies["synthetic photos"], synthetic_photos(), args.overlays)
     if "silhouettes" in parts:
         tallies["16 silhouettes"] = Tally()
         silhouettes(tallies["16 silhouettes"])
