@@ -1,5 +1,6 @@
 """Fit the `default` and `paper` presets on every silhouette we test; print a markdown
-table of the four rules' checks and write comparison pictures into docs/.
+table of the four rules' checks and the jeans' posture, and write comparison pictures
+into docs/.
 
     python bench/presets_report.py [--out docs] [--iterations 100]
 
@@ -17,7 +18,7 @@ from PIL import Image, ImageDraw
 
 from jeanscv.checks import rule_report
 from jeanscv.compositing import render_silhouette_figure
-from jeanscv.fitter import fit
+from jeanscv.fitter import fit, posture_name, tilt_degrees
 from jeanscv.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
@@ -62,10 +63,11 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
 
     shapes = load_shapes()
-    print("| silhouette | default: checks | default: objective | paper: checks | paper: objective (printed weights) |")
-    print("|---|---|---|---|---|")
+    print("| silhouette | default: checks | default: objective | default: tilt | paper: checks | paper: objective (printed weights) |")
+    print("|---|---|---|---|---|---|")
     tiles: dict[str, dict[str, Image.Image]] = {p: {} for p in PRESETS}
     passed = {p: 0 for p in PRESETS}
+    upright = {p: 0 for p in PRESETS}
     seconds = {p: 0.0 for p in PRESETS}
     for name, silhouette in shapes.items():
         cells = [name]
@@ -76,11 +78,16 @@ def main() -> None:
             report = rule_report(result.vertices, silhouette)
             failed = [k for k, ok in report.checks.items() if not ok]
             passed[preset] += report.passed
+            tilt = tilt_degrees(result.vertices, result.garment)
+            upright[preset] += posture_name(tilt) == "upright"
             cells += ["6/6" if report.passed else f"{6 - len(failed)}/6 (fails {', '.join(failed)})", f"{result.objective:.3f}"]
+            if preset == "default":
+                cells.append(f"{tilt:.0f}° {posture_name(tilt)}")
             tiles[preset][name] = tile(silhouette, result.vertices, f"{name} ({preset})", report.passed)
         print("| " + " | ".join(cells) + " |", flush=True)
     for preset in PRESETS:
-        print(f"\n{preset}: {passed[preset]}/{len(shapes)} silhouettes pass all six checks; {seconds[preset] / len(shapes):.2f} s per fit")
+        print(f"\n{preset}: {passed[preset]}/{len(shapes)} silhouettes pass all six checks, {upright[preset]}/{len(shapes)} "
+              f"upright (tilt <= 30 degrees); {seconds[preset] / len(shapes):.2f} s per fit")
 
     for group in ("paper", "zoo"):
         names = [n for n in shapes if n.startswith(group + ":")]

@@ -27,6 +27,7 @@ Examples:
   jeanscv cat.jpg --mask cat_mask.png   your own mask instead of the segmentation
   jeanscv pets.jpg --objects all        jeans on every separate object
   jeanscv pets.jpg --point 420,310      jeans on the object under that pixel
+  jeanscv car.jpg --posture any         jeans in any posture, lying ones too
 
 \b
 Outputs are written next to each input as NAME.jeans.EXT (or under -o DIR).
@@ -109,6 +110,9 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
               help="Write a JSON-lines report, one line per input, to this file.")
 @click.option("--preset", default="default", show_default=True, help="Fitting preset (see --list-presets).")
+@click.option("--posture", type=click.Choice(["upright", "any"]), default="upright", show_default=True,
+              help="upright: the garment hangs down unless no upright fit passes the rule checks; "
+                   "any: every posture competes (the algorithm's wilder answers).")
 @click.option("--garment", default="jeans", show_default=True,
               help="Garment: a name (see --list-garments) or a .toml file.")
 @click.option("--iterations", type=click.IntRange(0), default=100, show_default=True,
@@ -168,7 +172,7 @@ def _usage(message: str) -> click.UsageError:
 
 def _main(
     ctx: click.Context, paths: tuple[str, ...], *, output_dir, recursive, fmt, overwrite, want_json, want_svg,
-    want_gif, gif_frames, report, preset, garment, iterations, seed, starts, kind, silhouette_method, threshold,
+    want_gif, gif_frames, report, preset, posture, garment, iterations, seed, starts, kind, silhouette_method, threshold,
     mask, rect, objects, points, style, clip, top, bottom, side_by_side, max_pixels, raw_half_size, device, jobs,
     quiet, verbose,
 ) -> int:
@@ -202,7 +206,7 @@ def _main(
     if points and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
     options = Options(
-        preset=preset, garment=garment, iterations=iterations, seed=seed, starts=starts, kind=kind,
+        preset=preset, posture=posture, garment=garment, iterations=iterations, seed=seed, starts=starts, kind=kind,
         silhouette=silhouette_method, threshold=threshold, mask=mask, rect=rect, objects=objects, points=points,
         style=style, clip=clip, max_pixels=max_pixels, raw_half_size=raw_half_size, device=device,
         overwrite=overwrite, top=top, bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,

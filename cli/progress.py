@@ -105,10 +105,14 @@ class Progress:
             )
             self._write(f"    terms: {terms}")
             objects = info.get("objects", [])
+            for obj in objects[:1]:
+                self._write(f"    posture: {obj['posture']} (tilt {obj['tilt_degrees']:.0f} degrees), "
+                            f"rules {'passed' if obj['rules_passed'] else 'failed'}")
             for number, obj in enumerate(objects if len(objects) > 1 else [], 1):
                 x, y, w, h = obj["box"]
                 self._write(f"    object {number}: {obj['method']}, box {x},{y} {w}x{h}, "
-                            f"objective {obj['objective']:.6g}, rules {'passed' if obj['rules_passed'] else 'failed'}")
+                            f"objective {obj['objective']:.6g}, {obj['posture']}, "
+                            f"rules {'passed' if obj['rules_passed'] else 'failed'}")
         self._redraw()
 
     def skip_quietly(self, count: int) -> None:

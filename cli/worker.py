@@ -21,6 +21,7 @@ class Options:
     """The per-file settings from the command line (device already resolved)."""
 
     preset: str = "default"
+    posture: str = "upright"
     garment: str = "jeans"
     iterations: int = 100
     seed: int = 0
@@ -177,6 +178,7 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         raw_half_size=options.raw_half_size,
         objects=options.objects,
         points=list(options.points),
+        posture=options.posture,
     )
     fit = result.fit
     outcome.info = {
@@ -214,10 +216,11 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
 
 
 def _object_info(obj) -> dict:
-    """One object's line of ``-v`` and of ``--report``: method, box, objective, rules passed."""
+    """One object's line of ``-v`` and of ``--report``: method, box, objective, rules passed, posture."""
     entry = obj.report()
     return {"method": entry["method"], "box": entry["box"], "objective": entry["objective"],
-            "rules_passed": entry["rules"]["passed"]}
+            "rules_passed": entry["rules"]["passed"], "posture": entry["posture"],
+            "tilt_degrees": entry["tilt_degrees"]}
 
 
 # Worker processes: whether a file is being processed, for the SIGTERM handler.

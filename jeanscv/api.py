@@ -297,16 +297,22 @@ def fit(
     seed: int = 0,
     device: str = "cpu",
     starts: int | None = None,
+    posture: str = "upright",
 ):
     """Fit a garment to a :class:`Silhouette` or directly to a 256x256 ``S`` (array or tensor).
 
+    ``posture``: ``upright`` (the default preset hangs the garment upright unless no
+    upright placement passes the rule checks) or ``any`` (every posture competes).
     Returns a :class:`jeanscv.fitter.FitResult`: vertices in canvas pixels (and in image
     pixels, ``vertices_image``, for a Silhouette), per-term losses, the loss history.
     """
     from .fitter import fit as _fit
 
     canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
-    result = _fit(canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts, device=resolve_device(device))
+    result = _fit(
+        canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts,
+        device=resolve_device(device), posture=posture,
+    )
     if isinstance(silhouette, Silhouette):
         result.vertices_image = silhouette.framing.to_image(result.vertices)
     return result
@@ -392,18 +398,24 @@ class FittedObject:
     fit: object  # FitResult
 
     def report(self) -> dict:
-        """The object's entry in the report's ``objects`` list."""
+        """The object's entry in the report's ``objects`` list; ``tilt_degrees`` and
+        ``posture`` are measured on its ``vertices_image`` as reported."""
         from .checks import rule_report
+        from .fitter import posture_name, tilt_degrees
 
         framing = self.silhouette.framing
         rules = rule_report(self.fit.vertices, self.silhouette.canvas, self.fit.garment)
+        vertices_image = _rounded(framing.to_image(self.fit.vertices))
+        tilt = tilt_degrees(np.asarray(vertices_image), self.fit.garment)
         entry = {
             "box": list(_box_of(self.silhouette)),
             "method": self.silhouette.method,
             "vertices_canvas": _rounded(self.fit.vertices),
-            "vertices_image": _rounded(framing.to_image(self.fit.vertices)),
+            "vertices_image": vertices_image,
             "canvas_to_image": _rounded(framing.canvas_to_image),
             "objective": _round(self.fit.objective),
+            "tilt_degrees": _round(tilt),
+            "posture": posture_name(tilt),
             "rules": {k: (_round(v) if isinstance(v, float) else v) for k, v in rules.to_json().items()},
         }
         if "point" in self.silhouette.details:
@@ -447,10 +459,12 @@ class JeansResult:
             "device": fit_result.device,
             "canvas_size": CANVAS_SIZE,
             "silhouette_method": self.silhouette.method,
-            "vertices_canvas": _rounded(fit_result.vertices),
-            "vertices_image": _rounded(framing.to_image(fit_result.vertices)),
-            "canvas_to_image": _rounded(framing.canvas_to_image),
+            "vertices_canvas": entries[0]["vertices_canvas"],
+            "vertices_image": entries[0]["vertices_image"],
+            "canvas_to_image": entries[0]["canvas_to_image"],
             "image_size": list(framing.image_size),
+            "tilt_degrees": entries[0]["tilt_degrees"],
+            "posture": entries[0]["posture"],
             "paper_terms": _rounded_dict(fit_result.paper_terms),
             "paper_total": _round(fit_result.paper_total),
             "objective": _round(fit_result.objective),
@@ -556,6 +570,7 @@ def apply_jeans(
     raw_half_size: bool = False,
     objects: str = "one",
     points: list[tuple[float, float]] | None = None,
+    posture: str = "upright",
 ) -> JeansResult:
     """Decode, segment, fit and composite in one call.
 
@@ -564,15 +579,19 @@ def apply_jeans(
     photos get denim painted on at full resolution. ``objects="all"`` gives every
     separate object of a photo its own garment; ``points`` ((x, y) pixels, like clicks)
     pick the objects (see :func:`extract_silhouettes`). RAW files are decoded at the
-    camera's full size unless ``raw_half_size``.
+    camera's full size unless ``raw_half_size``. ``posture``: ``upright`` or ``any`` (see
+    :func:`fit`).
     """
+    from .presets import get_preset
+
+    get_preset(preset).with_posture(posture)  # a bad preset or posture fails before the decoding
     silhouettes, resolved_kind, pixels, loaded = prepare_input(
         source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_half_size, objects, points
     )
     fitted = []
     image = pixels
     for index, silhouette in enumerate(silhouettes):
-        fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts)
+        fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts, posture)
         fitted.append(FittedObject(silhouette, fit_result))
         if resolved_kind == "silhouette":
             image = figure(silhouette, fit_result)

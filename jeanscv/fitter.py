@@ -37,17 +37,33 @@ DEFAULT_PLACEMENTS = (
 
 
 def tilt_degrees(vertices: np.ndarray, garment: Garment) -> float:
-    """Angle between the garment's hanging direction (waistband to the rest) and
-    straight down: 0 upright, 90 lying on its side, 180 upside down."""
+    """The angle between straight down the image and the line from the waistband's midpoint
+    to the midpoint of the outer hems (:attr:`Garment.hems`): 0 upright, 90 lying on its
+    side, 180 upside down. A framing (scale and shift) keeps it, so canvas and image
+    vertices give the same tilt."""
     v = np.asarray(vertices, dtype=np.float64)
-    waist = v[list(garment.waist)].mean(axis=0)
-    down = np.delete(v, list(garment.waist), axis=0).mean(axis=0) - waist
+    down = v[list(garment.hems)].mean(axis=0) - v[list(garment.waist)].mean(axis=0)
     return float(np.degrees(np.arctan2(abs(down[0]), down[1])))
 
 
+#: Posture names by tilt: upright up to 30 degrees (the issue's bar), lying below 120.
+POSTURE_NAMES = ((30.0, "upright"), (120.0, "lying"), (180.0, "upside down"))
+
+
+def posture_name(tilt: float) -> str:
+    """``upright``, ``lying`` or ``upside down`` for a tilt in degrees (:func:`tilt_degrees`)."""
+    return next(name for limit, name in POSTURE_NAMES if tilt <= limit)
+
+
 def posture(vertices: np.ndarray, garment: Garment) -> int:
-    """0 upright (tilt <= 60 degrees), 1 lying (<= 120), 2 upside down."""
-    return int(min(tilt_degrees(vertices, garment) // 60.0001, 2))
+    """The rules selection's coarse posture: 0 upright, 1 lying, 2 upside down, in 60-degree
+    bands of the direction from the waistband to the mean of the other vertices (kept as it
+    was, so that ``posture="any"`` reproduces the earlier choices)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    waist = v[list(garment.waist)].mean(axis=0)
+    down = np.delete(v, list(garment.waist), axis=0).mean(axis=0) - waist
+    tilt = float(np.degrees(np.arctan2(abs(down[0]), down[1])))
+    return int(min(tilt // 60.0001, 2))
 
 
 @dataclass
@@ -75,16 +91,31 @@ class FitResult:
     vertices_image: np.ndarray | None = None  # (N, 2) input-image pixels, when a framing is known
 
 
+def preset_placements(preset: Preset, starts: int | None = None) -> tuple[tuple[float, ...], ...]:
+    """The ``(scale, degrees[, aspect])`` of starts 1.. of ``preset``: its placements (or
+    :data:`DEFAULT_PLACEMENTS`), cut or cycled to ``starts`` starts in all (default
+    ``preset.starts``). An upright plan's starts follow the preset's own ``starts - 1``
+    and count in ``starts`` (``starts=1`` is the paper's single start either way)."""
+    placements = preset.placements or DEFAULT_PLACEMENTS
+    count = preset.starts
+    if preset.upright and preset.upright.starts:
+        placements = tuple(placements[k % len(placements)] for k in range(preset.starts - 1)) + preset.upright.starts
+        count = len(placements) + 1
+    count = max(1, count if starts is None else starts)
+    return tuple(placements[k % len(placements)] for k in range(count - 1))
+
+
 def initial_placements(
     garment: Garment,
     starts: int,
     seed: int = 0,
-    placements: tuple[tuple[float, float], ...] = DEFAULT_PLACEMENTS,
+    placements: tuple[tuple[float, ...], ...] = DEFAULT_PLACEMENTS,
 ) -> np.ndarray:
     """``(starts, N, 2)`` initial vertices in canvas pixels.
 
     Start 0 is the template itself (the paper's initialisation); the others are the
-    template scaled and rotated about its waistband centre, which is moved to the
+    template scaled (x by ``scale * sqrt(aspect)``, y by ``scale / sqrt(aspect)``; aspect
+    1 when left out) and rotated about its waistband centre, which is moved to the
     canvas centre, with a small seeded jitter.
     """
     template = np.asarray(garment.template, dtype=np.float64)
@@ -93,11 +124,13 @@ def initial_placements(
     centre = np.array([CANVAS_SIZE / 2, CANVAS_SIZE / 2])
     out = [template]
     for k in range(1, starts):
-        scale, degrees = placements[(k - 1) % len(placements)]
+        scale, degrees, *aspect = placements[(k - 1) % len(placements)]
+        stretch = math.sqrt(aspect[0]) if aspect else 1.0
         angle = math.radians(degrees + rng.normal(0.0, 3.0))
         scale *= math.exp(rng.normal(0.0, 0.05))
         rot = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
-        out.append((template - waist) @ rot.T * scale + centre + rng.normal(0.0, 2.0, size=2))
+        shaped = (template - waist) * [stretch, 1.0 / stretch]
+        out.append(shaped @ rot.T * scale + centre + rng.normal(0.0, 2.0, size=2))
     return np.stack(out)
 
 
@@ -184,8 +217,8 @@ def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, 
     """Index of the winning start.
 
     ``objective``: the lowest objective. ``rules``: fewest failed rule checks first,
-    then upright before lying before upside-down (:func:`posture`), then the lowest
-    objective.
+    then (with an upright plan) upright (tilt <= its ``max_tilt``) before tilted, then
+    upright before lying before upside-down (:func:`posture`), then the lowest objective.
     """
     if preset.select == "objective":
         return int(np.argmin(totals))
@@ -193,9 +226,10 @@ def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, 
 
     def key(i: int) -> tuple:
         if not np.isfinite(totals[i]):
-            return (math.inf, True, math.inf)
+            return (math.inf,)
         failed = sum(not ok for ok in rule_report(candidates[i], silhouette, garment).checks.values())
-        return (failed, posture(candidates[i], garment), float(totals[i]))
+        tilted = () if preset.upright is None else (tilt_degrees(candidates[i], garment) > preset.upright.max_tilt,)
+        return (failed, *tilted, posture(candidates[i], garment), float(totals[i]))
 
     return min(range(len(totals)), key=key)
 
@@ -215,6 +249,30 @@ def _survivors(objectives: np.ndarray, postures: list[int], preset: Preset) -> n
             order.remove(upright)
             order.insert(0, upright)
     return np.sort(np.asarray(order[: preset.keep], dtype=np.int64))
+
+
+def _upright_survivors(objectives: np.ndarray, tilts: list[float], max_tilt: float, upright: int, tilted: int) -> np.ndarray:
+    """Sorted indices of the starts that go on under an upright plan: the ``upright`` best
+    starts tilted at most ``max_tilt`` degrees and the ``tilted`` best others, by objective,
+    topped up from the others (or the upright ones) when one kind runs short; diverged
+    starts last."""
+    order = [int(i) for i in np.argsort(np.nan_to_num(objectives, nan=math.inf), kind="stable")]
+    upright_order = [i for i in order if tilts[i] <= max_tilt and np.isfinite(objectives[i])]
+    tilted_order = [i for i in order if i not in upright_order]
+    chosen = upright_order[:upright] + tilted_order[:tilted]
+    chosen += [i for i in order if i not in chosen][: upright + tilted - len(chosen)]
+    return np.sort(np.asarray(chosen, dtype=np.int64))
+
+
+def _prunings(preset: Preset, iterations: int, num_starts: int) -> dict[int, tuple[int, int] | None]:
+    """``{step: survivors}`` after which steps the batch shrinks: ``(upright, tilted)``
+    counts under an upright plan, else None for the preset's ``keep``."""
+    if preset.upright:
+        return {int(iterations * fraction): (up, tilted) for fraction, up, tilted in preset.upright.prunings
+                if up + tilted < num_starts}
+    if preset.keep and preset.keep < num_starts:
+        return {int(iterations * preset.prune_fraction): None}
+    return {}
 
 
 @contextmanager
@@ -241,21 +299,26 @@ def fit(
     starts: int | None = None,
     device: str = "cpu",
     threads: int | None = 1,
+    posture: str = "upright",
 ) -> FitResult:
     """Fit the garment to a 256x256 silhouette ``S`` by gradient descent.
 
     All starts are optimised together as one batch with Adam on normalised
     coordinates; after ``preset.prune_fraction`` of the iterations only the
-    ``preset.keep`` best go on, and the winner is chosen by ``preset.select``.
+    ``preset.keep`` best go on (or those of its upright plan), and the winner is chosen
+    by ``preset.select``. ``starts``: how many starts (default: the preset's, with its
+    upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the
+    preset's upright plan, if it has one) or ``any`` (:meth:`Preset.with_posture`).
     ``threads``: torch threads during the fit (None leaves torch's setting).
     """
+    preset = (get_preset(preset) if isinstance(preset, str) else preset).with_posture(posture)
     with _torch_threads(threads):
         return _fit(silhouette, preset, garment, iterations, seed, starts, device)
 
 
 def _fit(
     silhouette: np.ndarray | Tensor,
-    preset: str | Preset,
+    preset: Preset,
     garment: Garment,
     iterations: int,
     seed: int,
@@ -263,20 +326,21 @@ def _fit(
     device: str,
 ) -> FitResult:
     began = time.perf_counter()
-    preset = get_preset(preset) if isinstance(preset, str) else preset
     if iterations < 0:
         raise JeansError("iterations must be >= 0")
-    num_starts = max(1, preset.starts if starts is None else starts)
+    placements = preset_placements(preset, starts)
+    num_starts = len(placements) + 1
     torch.manual_seed(seed)
     s = as_silhouette_tensor(silhouette, device)
 
-    init = torch.as_tensor(initial_placements(garment, num_starts, seed, preset.placements or DEFAULT_PLACEMENTS), dtype=torch.float32, device=device)
+    init = torch.as_tensor(initial_placements(garment, num_starts, seed, placements), dtype=torch.float32, device=device)
     optimizer = BatchAdam((init / CANVAS_SIZE).clone(), lr=preset.learning_rate)
     history = np.full((iterations, num_starts), np.nan)
     path = np.full((iterations + 1, num_starts, garment.num_vertices, 2), np.nan)
     path[0] = init.cpu().numpy()
     active = np.arange(num_starts)  # which starts are still optimised
-    prune_step = int(iterations * preset.prune_fraction) if preset.keep and preset.keep < num_starts else -1
+    prunings = _prunings(preset, iterations, num_starts)
+    prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
 
     def objective(pixels: Tensor, target: Tensor) -> tuple[Tensor, dict[str, Tensor]]:
         half_width = STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
@@ -303,10 +367,14 @@ def _fit(
         optimizer.step(torch.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0))
         history[step, active] = total.detach().cpu().numpy()
         path[step + 1, active] = (optimizer.params * CANVAS_SIZE).cpu().numpy()
-        if step == prune_step:
+        if step in prunings:
             # Successive halving: keep optimising only the most promising starts.
-            postures = [posture(v, garment) for v in path[step + 1, active]]
-            order = _survivors(history[step, active], postures, preset)
+            if preset.upright:
+                tilts = [tilt_degrees(v, garment) for v in path[step + 1, active]]
+                order = _upright_survivors(history[step, active], tilts, preset.upright.max_tilt, *prunings[step])
+            else:
+                postures = [posture(v, garment) for v in path[step + 1, active]]
+                order = _survivors(history[step, active], postures, preset)
             optimizer.keep(torch.as_tensor(order, device=device))
             active = active[order]
 

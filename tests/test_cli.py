@@ -43,7 +43,7 @@ def _check_report(report: dict, input_name: str, output_name: str, iterations: i
     affine = np.array(report["canvas_to_image"])
     assert canvas.shape == (8, 2) and image.shape == (8, 2) and affine.shape == (2, 3)
     assert set(report["paper_terms"]) == PAPER_TERMS
-    assert set(report["weights"]) == PAPER_TERMS
+    assert set(report["weights"]) == PAPER_TERMS | {"upright"}
     # Both vertex lists are rounded to 6 significant digits.
     np.testing.assert_allclose(canvas @ affine[:, :2].T + affine[:, 2], image, rtol=2e-5, atol=1e-3)
     assert np.isfinite(report["paper_total"]) and np.isfinite(report["objective"])

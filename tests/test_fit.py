@@ -62,7 +62,8 @@ def test_trajectory_and_history_shapes(zoo):
     assert result.trajectory.shape == (13, 8, 2)
     assert np.allclose(result.trajectory[-1], result.vertices, atol=1e-4)
     assert result.history.shape == (12, result.num_starts)
-    assert len(result.start_ids) == result.preset.keep
+    _, upright, tilted = result.preset.upright.prunings[-1]
+    assert len(result.start_ids) == upright + tilted
 
 
 def test_jeans_go_on_the_legs_of_a_human_like_shape(zoo):

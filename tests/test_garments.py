@@ -8,7 +8,7 @@ import torch
 
 from jeanscv.compositing import render_silhouette_figure
 from jeanscv.errors import JeansError
-from jeanscv.fitter import DEFAULT_PLACEMENTS, fit, initial_placements
+from jeanscv.fitter import fit, initial_placements, preset_placements
 from jeanscv.garments import GARMENTS, JEANS, SHORTS, SKIRT, Garment, get_garment, load_garment, polygon_area
 from jeanscv.loss import jalgorithm_terms, weighted_total
 from jeanscv.presets import get_preset
@@ -66,8 +66,9 @@ def test_skirt_is_a_trapezoid_with_the_jeans_waistband():
 
 def _initial_objectives(garment: Garment, silhouette: np.ndarray) -> np.ndarray:
     """The default preset's objective at every start before any step, on the unblurred S."""
-    preset = get_preset("default")
-    starts = initial_placements(garment, preset.starts, 0, preset.placements or DEFAULT_PLACEMENTS)
+    preset = get_preset("default").with_posture("upright")
+    placements = preset_placements(preset)
+    starts = initial_placements(garment, len(placements) + 1, 0, placements)
     vertices, target = torch.as_tensor(starts, dtype=torch.float32), torch.as_tensor(silhouette)
     terms = jalgorithm_terms(vertices, target, garment, preset.inter_pairs)
     return weighted_total(terms, preset.weights).numpy()
@@ -85,7 +86,8 @@ def test_every_garment_fits(name, cape):
     assert result.garment is garment
     before = _initial_objectives(garment, silhouette)
     assert result.objective < before[result.start_index] - 1.0
-    assert result.objective < before.min()
+    # The rules may pick a start other than the lowest (an upright one), so compare the best.
+    assert min(result.start_objectives) < before.min()
 
 
 @pytest.mark.parametrize("name", ["jeans", "shorts", "skirt", "cape"])
