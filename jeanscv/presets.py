@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from .errors import JeansError
-from .loss import PAPER_WEIGHTS
+from .terms import PAPER_WEIGHTS
 
 
 @dataclass(frozen=True)
