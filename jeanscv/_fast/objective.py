@@ -137,7 +137,8 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, w
                         not_on_body += f * run - run_s
                     else:
                         uncovered_in += run_s - f * run
-                    wind[r, c + 1 : end] = math.nan  # no gradient: the backward pass skips them
+                    wind[r, c + 1] = math.nan  # no gradient: the backward pass skips the run
+                    diff[r, c + 1] = end  # (the difference buffer is spent: it keeps where the run ends)
                     last = c + 1
                 for cell in range(c, last):
                     wind[r, cell] = acc
@@ -159,21 +160,29 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, w
     d_area = -w_inside * not_on_body / (area_den * area_den) if area >= _EPS else 0.0
     for r in range(rows):
         running = 0.0
-        for c in range(cols):
-            prefix[r, c] = running
+        c = 0
+        while c < cols:
             w = wind[r, c]
+            if math.isnan(w):
+                end = int(diff[r, c])
+                prefix[r, c:end] = running
+                cell_grad[r, c:end] = 0.0
+                c = end
+                continue
+            prefix[r, c] = running
             cell_grad[r, c] = 0.0
-            if math.isnan(w) or w == 0.0 or abs(w) > 1.0:
+            c += 1
+            if w == 0.0 or abs(w) > 1.0:
                 continue
             f = abs(w)
-            sv = s[oy + r, ox + c]
+            sv = s[oy + r, ox + c - 1]
             g = d_area
             if sv - f >= 0.0:
                 g -= d_uncovered
             if f - sv >= 0.0:
                 g += w_inside / area_den
             g = g if w > 0 else -g
-            cell_grad[r, c] = g
+            cell_grad[r, c - 1] = g
             running += g
         prefix[r, cols] = running
     g4 = np.zeros(4)
@@ -258,6 +267,8 @@ def objective(
     band_grad = np.empty((rows_limit, BAND_COLUMNS + 1))
     band_prefix = np.empty((rows_limit, BAND_COLUMNS + 1))
     col_start = np.empty((n, rows_limit), np.int64)
+    band_lo = np.empty((n, rows_limit), np.int64)
+    band_hi = np.empty((n, rows_limit), np.int64)
     row_start = np.empty(n, np.int64)
     band_count = np.empty(n, np.int64)
     x_major = np.empty(n, np.bool_)
@@ -314,19 +325,23 @@ def objective(
             areas[e] = on_body[e] = 0.0
             for r in range(band_count[e]):
                 acc = 0.0
+                lo, hi = BAND_COLUMNS, 0
                 for c in range(BAND_COLUMNS):
                     acc += band_diff[e, r, c]
                     x, y = _pixel(row_start[e], col_start[e], x_major[e], r, c)
                     if x < 0 or x >= size or y < 0 or y >= size:
-                        band_wind[e, r, c] = 0.0
-                        continue
-                    band_wind[e, r, c] = acc
-                    alpha = min(abs(acc), 1.0)
+                        acc_here = 0.0
+                    else:
+                        acc_here = acc
+                    band_wind[e, r, c] = acc_here
+                    alpha = min(abs(acc_here), 1.0)
                     if alpha > 0.0:
+                        lo, hi = min(lo, c), c + 1
                         p = y * size + x
                         areas[e] += alpha
                         on_body[e] += alpha * s[y, x]
                         mask[p] |= np.int64(1) << e
+                band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
 
         # unions of the open and the closed edges: excess where their strokes stack past 1
         union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
@@ -334,7 +349,7 @@ def objective(
         pair_excess[:, :] = 0.0
         for e in range(n):
             for r in range(band_count[e]):
-                for c in range(BAND_COLUMNS):
+                for c in range(band_lo[e, r], band_hi[e, r]):
                     alpha = min(abs(band_wind[e, r, c]), 1.0)
                     if alpha == 0.0:
                         continue
@@ -403,9 +418,9 @@ def objective(
             for e in range(n):
                 f = (e + 1) % n
                 for r in range(band_count[e]):
-                    for c in range(BAND_COLUMNS):
+                    band_grad[r, :] = 0.0
+                    for c in range(band_lo[e, r], band_hi[e, r]):
                         w = band_wind[e, r, c]
-                        band_grad[r, c] = 0.0
                         alpha = min(abs(w), 1.0)
                         if alpha == 0.0 or abs(w) > 1.0:
                             continue
@@ -449,7 +464,7 @@ def objective(
         # leave the scratch clean for the next candidate
         for e in range(n):
             for r in range(band_count[e]):
-                for c in range(BAND_COLUMNS):
+                for c in range(band_lo[e, r], band_hi[e, r]):
                     if band_wind[e, r, c] != 0.0:
                         x, y = _pixel(row_start[e], col_start[e], x_major[e], r, c)
                         mask[y * size + x] = 0
