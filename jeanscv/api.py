@@ -587,6 +587,10 @@ def apply_jeans(
     pick the objects (see :func:`extract_silhouettes`). RAW files are decoded at the
     camera's full size unless ``raw_half_size``. ``backend``: as in :func:`fit`.
     """
+    from . import _fast
+
+    if _fast.backend(backend, resolve_device(device)) == "fast":
+        _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
     silhouettes, resolved_kind, pixels, loaded = prepare_input(
         source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_half_size, objects, points
     )

@@ -16,6 +16,7 @@ import functools
 import importlib.util
 import math
 import os
+import threading
 
 import numpy as np
 
@@ -158,3 +159,30 @@ def stroke_coverage(start: np.ndarray, end: np.ndarray, height: int = 256, width
     cos_r, sin_r = cap_offsets(float(half_width))
     stroke_maps(start, end, height, width, float(half_width), cos_r, sin_r, out)
     return out
+
+
+_warming: threading.Thread | None = None
+
+
+def warm_up() -> None:
+    """Load numba and the cached kernels in a background thread.
+
+    The first call of any numba function in a process sets up LLVM (about half a
+    second, as long again as importing numba); started before decoding and
+    segmenting a photo, that happens while they run (OpenCV releases the GIL) instead
+    of before the fit. Later calls of the kernels wait for it where they need it.
+    """
+    global _warming
+    if _warming is not None or not available():
+        return
+
+    def load() -> None:
+        from ..garments import JEANS
+
+        square = JEANS.template / 16.0
+        Objective(JEANS, "all", {"coverage": 1.0})(square[None], np.ones((16, 16)), 0.25)
+        polygon_coverage(square, 16, 16)
+        stroke_coverage(square[:1], square[1:2], 16, 16)
+
+    _warming = threading.Thread(target=load, name="jeanscv-warm-up", daemon=True)
+    _warming.start()
