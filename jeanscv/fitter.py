@@ -319,7 +319,9 @@ def _fit(
             raise JeansError("the fit diverged (non-finite loss)")
         # Diverged starts must not poison the others: drop their gradient.
         grad = np.where(finite[:, None, None], grad * size, 0.0)
-        optimizer.step(np.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0))
+        if not np.isfinite(grad).all():
+            grad = np.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0)
+        optimizer.step(grad)
         history[step, active] = total
         path[step + 1, active] = optimizer.params * CANVAS_SIZE
         if step == prune_step:

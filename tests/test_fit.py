@@ -169,7 +169,7 @@ def test_posture_classes():
     assert tilt_degrees(rotated(90), JEANS) == pytest.approx(90.0, abs=0.1)
 
 
-def test_a_blur_schedule_runs_coarse_to_fine_with_kornia(zoo):
+def test_a_blur_schedule_runs_coarse_to_fine(zoo):
     import dataclasses
 
     from jeanscv.fitter import _blurred, blur_schedule
