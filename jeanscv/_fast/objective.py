@@ -199,9 +199,9 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, w
 
 
 @njit(cache=True)
-def _pixel(row_start, col_start, x_major, r, c):
-    """Canvas ``(x, y)`` of band cell ``(r, c)``."""
-    major, minor = row_start + r, col_start[r] + c
+def _pixel(row_start, row_col_start, x_major, r, c):
+    """Canvas ``(x, y)`` of band cell ``(r, c)``; ``row_col_start``: the row's first column."""
+    major, minor = row_start + r, row_col_start + c
     return (major, minor) if x_major else (minor, major)
 
 
@@ -272,6 +272,8 @@ def objective(
     row_start = np.empty(n, np.int64)
     band_count = np.empty(n, np.int64)
     x_major = np.empty(n, np.bool_)
+    labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
+    labels[0], labels[1] = is_open, is_closed
     outline = np.empty((OUTLINE_POINTS, 2))
     g_outline = np.empty((OUTLINE_POINTS, 2))
     areas = np.empty(n)
@@ -328,7 +330,7 @@ def objective(
                 lo, hi = BAND_COLUMNS, 0
                 for c in range(BAND_COLUMNS):
                     acc += band_diff[e, r, c]
-                    x, y = _pixel(row_start[e], col_start[e], x_major[e], r, c)
+                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
                     if x < 0 or x >= size or y < 0 or y >= size:
                         acc_here = 0.0
                     else:
@@ -353,18 +355,17 @@ def objective(
                     alpha = min(abs(band_wind[e, r, c]), 1.0)
                     if alpha == 0.0:
                         continue
-                    x, y = _pixel(row_start[e], col_start[e], x_major[e], r, c)
+                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
                     p = y * size + x
                     bits = mask[p]
                     if bits & (bits - 1) == 0:
                         continue  # one stroke only: no excess, no overlap
                     for u in range(2):
-                        labels = is_open if u == 0 else is_closed
-                        if not labels[e]:
+                        if not labels[u, e]:
                             continue
                         stacked = 0.0
                         for k in range(n):
-                            if labels[k] and (bits >> k) & 1:
+                            if labels[u, k] and (bits >> k) & 1:
                                 stacked += _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
                         if stacked > 1.0:
                             # spread the pixel's excess over its strokes, in proportion
@@ -378,7 +379,7 @@ def objective(
                             pair_excess[e, k] += max(alpha + other - 1.0, 0.0)
         for e in range(n):
             for u in range(2):
-                if (is_open if u == 0 else is_closed)[e]:
+                if labels[u, e]:
                     union[u, 0] += on_body[e]
                     union[u, 1] += areas[e]
         union_value = np.empty(2)
@@ -417,6 +418,12 @@ def objective(
                         base[k] += pair_d_den[e, k]
             for e in range(n):
                 f = (e + 1) % n
+                # d total / d alpha at a pixel no other stroke touches: lone + lone_s * S
+                lone, lone_s = base[e], 0.0
+                for u in range(2):
+                    if labels[u, e] and union_weight[u] != 0.0:
+                        lone += union_weight[u] * union_d_den[u]
+                        lone_s += union_weight[u] / union_den[u]
                 for r in range(band_count[e]):
                     band_grad[r, :] = 0.0
                     for c in range(band_lo[e, r], band_hi[e, r]):
@@ -424,24 +431,23 @@ def objective(
                         alpha = min(abs(w), 1.0)
                         if alpha == 0.0 or abs(w) > 1.0:
                             continue
-                        x, y = _pixel(row_start[e], col_start[e], x_major[e], r, c)
+                        x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
                         p = y * size + x
                         bits = mask[p]
+                        if bits & (bits - 1) == 0:
+                            band_grad[r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
+                            continue
                         g = base[e]
-                        shared = bits & (bits - 1) != 0
                         for u in range(2):
-                            labels = is_open if u == 0 else is_closed
-                            if not labels[e] or union_weight[u] == 0.0:
+                            if not labels[u, e] or union_weight[u] == 0.0:
                                 continue
-                            stacked = alpha
-                            if shared:
-                                stacked = 0.0
-                                for k in range(n):
-                                    if labels[k] and (bits >> k) & 1:
-                                        stacked += _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                            stacked = 0.0
+                            for k in range(n):
+                                if labels[u, k] and (bits >> k) & 1:
+                                    stacked += _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
                             if stacked <= 1.0:
-                                g += union_weight[u] * (s[y, x] / union_den[u] + union_d_den[u])
-                        for k in range(n if shared else 0):
+                                g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
+                        for k in range(n):
                             if k == e or not (bits >> k) & 1:
                                 continue
                             i, j = min(e, k), max(e, k)
@@ -466,5 +472,5 @@ def objective(
             for r in range(band_count[e]):
                 for c in range(band_lo[e, r], band_hi[e, r]):
                     if band_wind[e, r, c] != 0.0:
-                        x, y = _pixel(row_start[e], col_start[e], x_major[e], r, c)
+                        x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
                         mask[y * size + x] = 0
