@@ -103,7 +103,10 @@ class Objective:
         if key not in self._scratch:
             rows = band_scratch_rows(size, half_width)
             self._scratch[key] = (
-                np.zeros(size * size, np.int64), np.empty((size, size + 2)),
+                # The per-pixel bit mask of strokes, as narrow as the edges allow: it is
+                # read at every stroke pixel, and a quarter of the bytes stays in cache.
+                np.zeros(size * size, np.uint8 if n <= 8 else np.uint16 if n <= 16 else np.int64),
+                np.empty((size, size + 2)),
                 np.empty((size, size)), np.empty((size, size + 2)), np.empty((size, size + 2)),
                 np.empty((n, rows, 15)), np.empty((n, rows, 13)),
             )

@@ -219,6 +219,19 @@ def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
 
 
 @njit(cache=True)
+def _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here):
+    """Every stroke's alpha at pixel ``(x, y)`` into ``here`` (0 where absent), read once
+    from the bands for the unions and the pairs; stroke ``e``'s own is ``alpha``."""
+    for k in range(here.shape[0]):
+        if k == e:
+            here[k] = alpha
+        elif (bits >> k) & 1:
+            here[k] = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+        else:
+            here[k] = 0.0
+
+
+@njit(cache=True)
 def objective(
     vertices, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, need_grad,
     terms, grad, mask, diff, wind, cell_grad, prefix, band_diff, band_wind,
@@ -272,6 +285,7 @@ def objective(
     row_start = np.empty(n, np.int64)
     band_count = np.empty(n, np.int64)
     x_major = np.empty(n, np.bool_)
+    here = np.empty(n)  # the strokes' alphas at one pixel
     labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
     labels[0], labels[1] = is_open, is_closed
     outline = np.empty((OUTLINE_POINTS, 2))
@@ -342,7 +356,7 @@ def objective(
                         p = y * size + x
                         areas[e] += alpha
                         on_body[e] += alpha * s[y, x]
-                        mask[p] |= np.int64(1) << e
+                        mask[p] |= mask.dtype.type(1 << e)
                 band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
 
         # unions of the open and the closed edges: excess where their strokes stack past 1
@@ -360,13 +374,14 @@ def objective(
                     bits = mask[p]
                     if bits & (bits - 1) == 0:
                         continue  # one stroke only: no excess, no overlap
+                    _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
                     for u in range(2):
                         if not labels[u, e]:
                             continue
                         stacked = 0.0
                         for k in range(n):
-                            if labels[u, k] and (bits >> k) & 1:
-                                stacked += _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                            if labels[u, k]:
+                                stacked += here[k]
                         if stacked > 1.0:
                             # spread the pixel's excess over its strokes, in proportion
                             share = alpha / stacked * (stacked - 1.0)
@@ -374,7 +389,7 @@ def objective(
                             union[u, 3] += share * s[y, x]
                     for k in range(e + 1, n):
                         if pair[e, k] and (bits >> k) & 1:
-                            other = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                            other = here[k]
                             overlap[e, k] += alpha * other
                             pair_excess[e, k] += max(alpha + other - 1.0, 0.0)
         for e in range(n):
@@ -438,13 +453,14 @@ def objective(
                             band_grad[r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
                             continue
                         g = base[e]
+                        _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
                         for u in range(2):
                             if not labels[u, e] or union_weight[u] == 0.0:
                                 continue
                             stacked = 0.0
                             for k in range(n):
-                                if labels[u, k] and (bits >> k) & 1:
-                                    stacked += _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                                if labels[u, k]:
+                                    stacked += here[k]
                             if stacked <= 1.0:
                                 g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
                         for k in range(n):
@@ -453,7 +469,7 @@ def objective(
                             i, j = min(e, k), max(e, k)
                             if not pair[i, j]:
                                 continue
-                            other = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                            other = here[k]
                             g += weights[INTER] * other / pair_den[i, j]
                             if alpha + other - 1.0 >= 0.0:
                                 g -= pair_d_den[i, j]
