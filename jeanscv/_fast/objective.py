@@ -374,24 +374,24 @@ def objective(
                     bits = mask[p]
                     if bits & (bits - 1) == 0:
                         continue  # one stroke only: no excess, no overlap
+                    if bits & ((1 << e) - 1):
+                        continue  # the pixel's lowest stroke counts it, once
                     _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
                     for u in range(2):
-                        if not labels[u, e]:
-                            continue
                         stacked = 0.0
                         for k in range(n):
                             if labels[u, k]:
                                 stacked += here[k]
                         if stacked > 1.0:
-                            # spread the pixel's excess over its strokes, in proportion
-                            share = alpha / stacked * (stacked - 1.0)
-                            union[u, 2] += share
-                            union[u, 3] += share * s[y, x]
-                    for k in range(e + 1, n):
-                        if pair[e, k] and (bits >> k) & 1:
-                            other = here[k]
-                            overlap[e, k] += alpha * other
-                            pair_excess[e, k] += max(alpha + other - 1.0, 0.0)
+                            union[u, 2] += stacked - 1.0
+                            union[u, 3] += (stacked - 1.0) * s[y, x]
+                    for i in range(e, n):
+                        if here[i] == 0.0:
+                            continue
+                        for k in range(i + 1, n):
+                            if pair[i, k] and here[k] != 0.0:
+                                overlap[i, k] += here[i] * here[k]
+                                pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
         for e in range(n):
             for u in range(2):
                 if labels[u, e]:
