@@ -1,9 +1,13 @@
-"""Fit speed: ms per iteration and seconds per 100-iteration fit, one start and the
-multi-start batch, and what multi-start buys in objective.
+"""Fit speed of the two backends side by side, measured in the same run: seconds per
+100-iteration fit of the default preset (multi-start) and of the paper preset, and
+ms per iteration of a one-start fit.
 
-    python bench/fit_speed.py [--repeats 3] [--device cpu]
+    python bench/fit_speed.py [--repeats 3] [--iterations 100]
 
-Uses ../shared/silhouettes/*.png when present, else the synthetic zoo.
+Uses ../shared/silhouettes/*.png when present, else the synthetic zoo. One thread
+(the fast path is single-threaded; torch is set to one thread, its fastest here), so
+the figures are the process's CPU seconds: the wall time of an idle machine, and much
+less disturbed than wall time when other jobs share the cores.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from jeanscv.fitter import fit
 from jeanscv.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
+BACKENDS = ("fast", "torch")
 
 
 def shapes() -> dict[str, np.ndarray]:
@@ -31,42 +36,50 @@ def shapes() -> dict[str, np.ndarray]:
     return found or silhouette_zoo(["person", "dog", "spider", "blob_a", "kangaroo", "tree", "crab"])
 
 
-def timed(silhouette: np.ndarray, repeats: int, **options) -> tuple[float, object]:
-    times, result = [], None
+def timed(silhouette: np.ndarray, repeats: int, **options) -> float:
+    """Median CPU seconds of ``repeats`` fits."""
+    times = []
     for _ in range(repeats):
-        began = time.perf_counter()
-        result = fit(silhouette, **options)
-        times.append(time.perf_counter() - began)
-    return statistics.median(times), result
+        began = time.process_time()
+        fit(silhouette, **options)
+        times.append(time.process_time() - began)
+    return statistics.median(times)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--iterations", type=int, default=100)
-    parser.add_argument("--device", default="cpu")
     args = parser.parse_args()
-    fit(silhouette_zoo(["blob_a"])["blob_a"], iterations=5, device=args.device)  # warm-up
+    for backend in BACKENDS:  # warm-up: kernels loaded, torch imported
+        fit(silhouette_zoo(["blob_a"])["blob_a"], iterations=5, backend=backend)
 
-    print("| silhouette | 1 start: s/fit | ms/iteration | multi-start (18 -> 3 -> 2): s/fit | ratio | objective 1 start | objective multi | paper preset (16 -> 5): s/fit |")
-    print("|---|---|---|---|---|---|---|---|")
-    singles, multis, papers = [], [], []
+    print("CPU seconds per fit (one thread)\n")
+    print("| silhouette | default: fast s | default: torch s | speed-up | paper: fast s | paper: torch s | speed-up "
+          "| 1 start: fast ms/it | 1 start: torch ms/it |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    figures: dict[str, list[float]] = {}
     for name, silhouette in shapes().items():
-        common = dict(iterations=args.iterations, device=args.device)
-        single, single_result = timed(silhouette, args.repeats, starts=1, **common)
-        multi, multi_result = timed(silhouette, args.repeats, **common)
-        paper, _ = timed(silhouette, 1, preset="paper", **common)
-        singles.append(single)
-        multis.append(multi)
-        papers.append(paper)
+        row = {}
+        for backend in BACKENDS:
+            common = dict(iterations=args.iterations, backend=backend)
+            row[f"default {backend}"] = timed(silhouette, args.repeats, **common)
+            row[f"paper {backend}"] = timed(silhouette, 1, preset="paper", **common)
+            row[f"single {backend}"] = 1000 * timed(silhouette, args.repeats, starts=1, **common) / args.iterations
+        for key, value in row.items():
+            figures.setdefault(key, []).append(value)
         print(
-            f"| {name} | {single:.2f} | {1000 * single / args.iterations:.1f} | {multi:.2f} | {multi / single:.1f}x "
-            f"| {single_result.objective:.3f} | {multi_result.objective:.3f} | {paper:.2f} |",
+            f"| {name} | {row['default fast']:.3f} | {row['default torch']:.2f} "
+            f"| {row['default torch'] / row['default fast']:.0f}x | {row['paper fast']:.3f} | {row['paper torch']:.2f} "
+            f"| {row['paper torch'] / row['paper fast']:.0f}x | {row['single fast']:.2f} | {row['single torch']:.1f} |",
             flush=True,
         )
+    median = {key: statistics.median(values) for key, values in figures.items()}
     print(
-        f"\nmedian: 1 start {statistics.median(singles):.2f} s, multi-start {statistics.median(multis):.2f} s "
-        f"({statistics.median(multis) / statistics.median(singles):.1f}x), paper preset {statistics.median(papers):.2f} s"
+        f"\nmedian: default {median['default fast']:.3f} s fast vs {median['default torch']:.2f} s torch "
+        f"({median['default torch'] / median['default fast']:.0f}x); paper {median['paper fast']:.3f} s vs "
+        f"{median['paper torch']:.2f} s ({median['paper torch'] / median['paper fast']:.0f}x); one start "
+        f"{median['single fast']:.2f} vs {median['single torch']:.1f} ms per iteration"
     )
 
 

@@ -143,8 +143,11 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
               help="Accepted for compatibility: RAW files decode at full size by default.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
               help="Where to fit.")
-@click.option("-j", "--jobs", type=click.IntRange(1), default=1, show_default=True,
-              help="Worker processes for many inputs.")
+@click.option("--backend", type=click.Choice(["auto", "fast", "torch"]), default="auto", show_default=True,
+              help="Fitting code on the CPU: fast (compiled kernel) or torch (the reference); "
+                   "auto: $JEANSCV_BACKEND, else fast when numba is installed.")
+@click.option("-j", "--jobs", type=click.IntRange(1),
+              help="Worker processes for many inputs (default: one per core, as memory allows).")
 @click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
 @click.option("-v", "--verbose", is_flag=True, help="Print the silhouette method, device and losses per file.")
 @click.option("--list-presets", is_flag=True, expose_value=False, is_eager=True, callback=_list_presets,
@@ -173,8 +176,8 @@ def _usage(message: str) -> click.UsageError:
 def _main(
     ctx: click.Context, paths: tuple[str, ...], *, output_dir, recursive, fmt, overwrite, want_json, want_svg,
     want_gif, gif_frames, report, preset, posture, garment, iterations, seed, starts, kind, silhouette_method, threshold,
-    mask, rect, objects, points, style, clip, top, bottom, side_by_side, max_pixels, raw_half_size, device, jobs,
-    quiet, verbose,
+    mask, rect, objects, points, style, clip, top, bottom, side_by_side, max_pixels, raw_half_size, device, backend,
+    jobs, quiet, verbose,
 ) -> int:
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
@@ -193,8 +196,11 @@ def _main(
         except JeansError as exc:
             raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
 
+    from jeanscv._fast import backend as resolve_backend
+
     try:
         device = resolve_device(device)
+        backend = resolve_backend(None if backend == "auto" else backend, device)
     except JeansError as exc:
         click.echo(f"jeanscv: {one_line(exc)}", err=True)
         return 2
@@ -209,13 +215,14 @@ def _main(
         preset=preset, posture=posture, garment=garment, iterations=iterations, seed=seed, starts=starts, kind=kind,
         silhouette=silhouette_method, threshold=threshold, mask=mask, rect=rect, objects=objects, points=points,
         style=style, clip=clip, max_pixels=max_pixels, raw_half_size=raw_half_size, device=device,
-        overwrite=overwrite, top=top, bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,
+        backend=backend, overwrite=overwrite, top=top, bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,
     )
 
     progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
     noun = "input" if len(found.jobs) == 1 else "inputs"
-    progress.info(f"jeanscv {__version__}: {len(found.jobs)} {noun}, device {device}, preset {preset}, "
-                  f"{iterations} iterations")
+    workers, why = _workers(jobs, len(found.jobs))
+    progress.info(f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
+                  f"({why}), device {device} ({backend}), preset {preset}, {iterations} iterations")
     records: list[dict] = []
     for problem in found.problems:
         progress.error(problem.display, problem.reason)
@@ -246,8 +253,8 @@ def _main(
     code = 0
     previous = _install_sigterm()
     try:
-        if jobs > 1 and len(pending) > 1:
-            _run_parallel(pending, options, min(jobs, len(pending)), progress, outcomes)
+        if workers > 1 and len(pending) > 1:
+            _run_parallel(pending, options, min(workers, len(pending)), progress, outcomes)
         else:
             _run_serial(pending, options, progress, outcomes)
     except KeyboardInterrupt:
@@ -267,6 +274,37 @@ def _main(
     if any(outcome.usage for outcome in outcomes.values()):
         return 2  # an option did not fit its input (a --point outside the image)
     return 1 if progress.counts["failed"] else 0
+
+
+#: Memory one worker may need at its peak (a 24-MP photo; README "Speed").
+WORKER_MEMORY_BYTES = 1 << 30
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available to new processes (Linux), None where unknown."""
+    try:
+        with open("/proc/meminfo") as info:
+            for line in info:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def _workers(jobs: int | None, inputs: int) -> tuple[int, str]:
+    """How many worker processes, and why: ``-j`` as given, else one per core for
+    several inputs, as far as the available memory holds one worker per GiB."""
+    if jobs is not None:
+        return jobs, "-j"
+    if inputs <= 1:
+        return 1, "one input"
+    cores = os.cpu_count() or 1
+    memory = _available_memory()
+    fit = cores if memory is None else max(1, min(cores, memory // WORKER_MEMORY_BYTES))
+    if fit < cores:
+        return min(fit, inputs), f"{cores} cores, memory for {fit}"
+    return min(cores, inputs), f"one per core, {cores} cores"
 
 
 class _Terminated(BaseException):

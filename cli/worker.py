@@ -38,6 +38,7 @@ class Options:
     max_pixels: int = 100_000_000
     raw_half_size: bool = False
     device: str = "cpu"
+    backend: str | None = None  # resolved by the command: fast or torch
     overwrite: bool = False
     top: str | None = None
     bottom: str | None = None
@@ -179,6 +180,7 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         objects=options.objects,
         points=list(options.points),
         posture=options.posture,
+        backend=options.backend,
     )
     fit = result.fit
     outcome.info = {
@@ -285,16 +287,19 @@ def reuse_freed_memory() -> bool:
 
 def init_worker(threads: int) -> None:
     """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on SIGTERM."""
+    import sys
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
     reuse_freed_memory()
     import cv2
-    import torch
 
     # OpenCV sizes its thread pool to every core too: N workers would each run
-    # N-core OpenCV calls and oversubscribe the machine.
+    # N-core OpenCV calls and oversubscribe the machine. Torch likewise, where a
+    # torch fit loads it (the fast path never does).
     cv2.setNumThreads(max(1, threads))
-    torch.set_num_threads(max(1, threads))
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(max(1, threads))
 
 
 def process_in_worker(job: Job, options: Options) -> Outcome:

@@ -298,6 +298,7 @@ def fit(
     device: str = "cpu",
     starts: int | None = None,
     posture: str = "upright",
+    backend: str | None = None,
 ):
     """Fit a garment to a :class:`Silhouette` or directly to a 256x256 ``S`` (array or tensor).
 
@@ -305,13 +306,16 @@ def fit(
     upright placement passes the rule checks) or ``any`` (every posture competes).
     Returns a :class:`jeanscv.fitter.FitResult`: vertices in canvas pixels (and in image
     pixels, ``vertices_image``, for a Silhouette), per-term losses, the loss history.
+    ``backend``: ``"fast"`` (numba kernel, CPU) or ``"torch"`` (the reference, and the
+    only one on CUDA); None: ``$JEANSCV_BACKEND``, else fast on the CPU when numba is
+    installed. Both give the same fit to rounding.
     """
     from .fitter import fit as _fit
 
     canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
     result = _fit(
         canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts,
-        device=resolve_device(device), posture=posture,
+        device=resolve_device(device), posture=posture, backend=backend,
     )
     if isinstance(silhouette, Silhouette):
         result.vertices_image = silhouette.framing.to_image(result.vertices)
@@ -319,7 +323,15 @@ def fit(
 
 
 def resolve_device(device: str) -> str:
-    """``auto`` -> ``cuda`` when available else ``cpu``; asking for missing cuda is an error."""
+    """``auto`` -> ``cuda`` when available else ``cpu``; asking for missing cuda is an error.
+
+    ``cpu`` needs no torch, and ``auto`` imports torch (about a second) only where an
+    NVIDIA driver is installed.
+    """
+    if device == "cpu":
+        return device
+    if device == "auto" and not _nvidia_driver():
+        return "cpu"
     import torch
 
     if device == "auto":
@@ -329,6 +341,11 @@ def resolve_device(device: str) -> str:
     if device not in ("cpu",) and not device.startswith("cuda"):
         raise JeansError(f"unknown device {device!r} (use auto, cpu or cuda)")
     return device
+
+
+def _nvidia_driver() -> bool:
+    """Whether an NVIDIA kernel driver is loaded (CUDA cannot be available without one)."""
+    return Path("/proc/driver/nvidia/version").exists() or Path("/dev/nvidiactl").exists() or os.name == "nt"
 
 
 def composite(
@@ -571,6 +588,7 @@ def apply_jeans(
     objects: str = "one",
     points: list[tuple[float, float]] | None = None,
     posture: str = "upright",
+    backend: str | None = None,
 ) -> JeansResult:
     """Decode, segment, fit and composite in one call.
 
@@ -580,18 +598,21 @@ def apply_jeans(
     separate object of a photo its own garment; ``points`` ((x, y) pixels, like clicks)
     pick the objects (see :func:`extract_silhouettes`). RAW files are decoded at the
     camera's full size unless ``raw_half_size``. ``posture``: ``upright`` or ``any`` (see
-    :func:`fit`).
+    :func:`fit`). ``backend``: as in :func:`fit`.
     """
+    from . import _fast
     from .presets import get_preset
 
     get_preset(preset).with_posture(posture)  # a bad preset or posture fails before the decoding
+    if _fast.backend(backend, resolve_device(device)) == "fast":
+        _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
     silhouettes, resolved_kind, pixels, loaded = prepare_input(
         source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_half_size, objects, points
     )
     fitted = []
     image = pixels
     for index, silhouette in enumerate(silhouettes):
-        fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts, posture)
+        fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts, posture, backend)
         fitted.append(FittedObject(silhouette, fit_result))
         if resolved_kind == "silhouette":
             image = figure(silhouette, fit_result)

@@ -13,12 +13,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-import torch
 
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .loss import affine_residual_operator
-from .render import polygon_coverage, polygon_edges, stroke_coverage
+from .terms import affine_residual_operator
 
 
 def _segments_cross(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> bool:
@@ -73,21 +71,40 @@ class RuleReport:
         return {**asdict(self), "checks": self.checks, "passed": self.passed}
 
 
-def rule_report(vertices: np.ndarray, silhouette: np.ndarray, garment: Garment = JEANS) -> RuleReport:
+def rasterized(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(fill (256, 256), strokes (N, 256, 256))``: the exact coverage of the closed
+    polygon and of its edges' 5-px strokes, by the numba kernel when numba is
+    installed (no torch import), else by the torch rasterizer."""
+    v = np.asarray(vertices, dtype=np.float64)
+    start, end = v, np.roll(v, -1, axis=0)
+    from . import _fast
+
+    if _fast.available():
+        return _fast.polygon_coverage(v, CANVAS_SIZE, CANVAS_SIZE), _fast.stroke_coverage(start, end)
+    import torch
+
+    from .render import polygon_coverage, stroke_coverage
+
+    fill = polygon_coverage(torch.as_tensor(v)[None], CANVAS_SIZE, CANVAS_SIZE)[0]
+    strokes = stroke_coverage(torch.as_tensor(start), torch.as_tensor(end), CANVAS_SIZE, CANVAS_SIZE)
+    return fill.numpy(), strokes.numpy()
+
+
+def rule_report(vertices: np.ndarray, silhouette, garment: Garment = JEANS) -> RuleReport:
     """Evaluate the four rules for canvas-pixel ``vertices`` ``(N, 2)`` on ``S`` ``(256, 256)``."""
-    v = torch.as_tensor(np.asarray(vertices, dtype=np.float64))[None]
-    s = torch.as_tensor(np.asarray(silhouette, dtype=np.float64))
-    fill = polygon_coverage(v, CANVAS_SIZE, CANVAS_SIZE)[0]
-    start, end = polygon_edges(v)
-    strokes = stroke_coverage(start[0], end[0], CANVAS_SIZE, CANVAS_SIZE)
-    open_union = torch.clamp(strokes[list(garment.open_edges)].sum(dim=0), max=1.0)
-    waist = v[0, list(garment.waist)].mean(dim=0)
-    residual = torch.as_tensor(affine_residual_operator(garment.template)) @ (v[0] / CANVAS_SIZE)
+    v = np.asarray(vertices, dtype=np.float64)
+    if hasattr(silhouette, "detach"):
+        silhouette = silhouette.detach().cpu().numpy()
+    s = np.asarray(silhouette, dtype=np.float64)
+    fill, strokes = rasterized(v)
+    open_union = np.minimum(strokes[list(garment.open_edges)].sum(axis=0), 1.0)
+    waist = v[list(garment.waist)].mean(axis=0)
+    residual = affine_residual_operator(garment.template) @ (v / CANVAS_SIZE)
     return RuleReport(
-        waist_offset_px=float(torch.linalg.vector_norm(waist - CANVAS_SIZE / 2)),
+        waist_offset_px=float(np.linalg.norm(waist - CANVAS_SIZE / 2)),
         covered_fraction=float((fill * s).sum() / s.sum()),
         rigid=float((residual**2).sum()),
-        open_on_body=float((open_union * s).sum() / open_union.sum().clamp(min=1e-12)),
+        open_on_body=float((open_union * s).sum() / max(open_union.sum(), 1e-12)),
         self_intersects=self_intersects(vertices),
-        on_body_fraction=float((fill * s).sum() / fill.sum().clamp(min=1e-12)),
+        on_body_fraction=float((fill * s).sum() / max(fill.sum(), 1e-12)),
     )

@@ -8,14 +8,13 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
-import torch
-from torch import Tensor
 
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .loss import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES, jalgorithm_terms, weighted_total
+from .objectives import make_objective
 from .presets import Preset, get_preset
+from .terms import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES
 
 # (scale, rotation in degrees) of the starts after the paper's own initialisation,
 # around the waistband centre moved to the canvas centre. They cover small and large
@@ -140,22 +139,30 @@ def blur_schedule(sigmas: tuple[float, ...], iterations: int) -> list[float]:
     return [stages[min(i * len(stages) // max(iterations, 1), len(stages) - 1)] for i in range(iterations)]
 
 
-def _blurred(silhouette: Tensor, sigma: float) -> Tensor:
+def gaussian_kernel(sigma: float) -> np.ndarray:
+    """kornia's normalised 1-D Gaussian of ``2 * ceil(3 sigma) + 1`` taps."""
+    radius = int(math.ceil(3 * sigma))
+    taps = np.exp(-(np.arange(-radius, radius + 1, dtype=np.float64) ** 2) / (2 * sigma**2))
+    return taps / taps.sum()
+
+
+def _blurred(silhouette: np.ndarray, sigma: float) -> np.ndarray:
+    """``S`` blurred as kornia.filters.gaussian_blur2d (separable, zeros outside the canvas)."""
     if sigma <= 0:
         return silhouette
-    import kornia
+    taps = gaussian_kernel(sigma)
+    radius = len(taps) // 2
+    padded = np.pad(silhouette, radius)
+    rows = sum(w * padded[:, k : k + silhouette.shape[1]] for k, w in enumerate(taps))
+    return sum(w * rows[k : k + silhouette.shape[0]] for k, w in enumerate(taps))
 
-    radius = int(math.ceil(3 * sigma))
-    return kornia.filters.gaussian_blur2d(
-        silhouette[None, None], (2 * radius + 1, 2 * radius + 1), (sigma, sigma), border_type="constant"
-    )[0, 0]
 
-
-def _area_downsampled(silhouette: Tensor, factor: int) -> Tensor:
+def _area_downsampled(silhouette: np.ndarray, factor: int) -> np.ndarray:
     """``S`` averaged over ``factor x factor`` blocks (exact area coverage at the coarser grid)."""
     if factor == 1:
         return silhouette
-    return torch.nn.functional.avg_pool2d(silhouette[None, None], factor)[0, 0]
+    size = silhouette.shape[0] // factor
+    return silhouette.reshape(size, factor, size, factor).mean(axis=(1, 3))
 
 
 def _screen_factor(preset: Preset) -> int:
@@ -168,49 +175,52 @@ def _screen_factor(preset: Preset) -> int:
     return factor
 
 
-def as_silhouette_tensor(silhouette: np.ndarray | Tensor, device: str = "cpu") -> Tensor:
-    """Validate ``S`` and return it as a float32 ``(256, 256)`` tensor."""
-    s = torch.as_tensor(np.asarray(silhouette) if not isinstance(silhouette, Tensor) else silhouette)
+def as_silhouette_array(silhouette) -> np.ndarray:
+    """Validate ``S`` (array or tensor) and return it as a float64 ``(256, 256)`` array in [0, 1]."""
+    if hasattr(silhouette, "detach"):
+        silhouette = silhouette.detach().cpu().numpy()
+    s = np.asarray(silhouette)
     if s.shape != (CANVAS_SIZE, CANVAS_SIZE):
         raise JeansError(f"silhouette must be {CANVAS_SIZE}x{CANVAS_SIZE}, got {tuple(s.shape)}")
-    s = s.to(device=device, dtype=torch.float32)
-    if not torch.isfinite(s).all():
+    # Through float32 first, as the fit always took S: the same input, the same bits.
+    s = s.astype(np.float32).astype(np.float64)
+    if not np.isfinite(s).all():
         raise JeansError("silhouette has non-finite values")
-    s = s.clamp(0.0, 1.0)
+    s = s.clip(0.0, 1.0)
     if s.sum() < 1.0:
         raise JeansError("silhouette is empty")
     return s
 
 
 class BatchAdam:
-    """Adam (Kingma & Ba; torch.optim.Adam's defaults and update) over a batch of starts.
+    """Adam (Kingma & Ba; torch.optim.Adam's defaults and update) over a batch of starts,
+    in numpy: the fit's parameters are a few hundred numbers, and torch.optim would
+    import torch._dynamo (1.6 s per process). The batch shrinks with its moments when
+    starts are pruned."""
 
-    Written out because torch.optim imports torch._dynamo on first use (1.6 s per
-    process), and so the batch can shrink with its moments when starts are pruned.
-    """
-
-    def __init__(self, params: Tensor, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
-        self.params, self.lr, self.betas, self.eps = params, lr, betas, eps
-        self.exp_avg = torch.zeros_like(params)
-        self.exp_avg_sq = torch.zeros_like(params)
+    def __init__(self, params: np.ndarray, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
+        self.params, self.lr, self.betas, self.eps = np.array(params, dtype=np.float64), lr, betas, eps
+        self.exp_avg = np.zeros_like(self.params)
+        self.exp_avg_sq = np.zeros_like(self.params)
         self.steps = 0
 
-    @torch.no_grad()
-    def step(self, grad: Tensor) -> None:
-        """One Adam update of ``params`` in place."""
+    def step(self, grad: np.ndarray) -> None:
+        """One Adam update of ``params`` in place (torch's order of operations)."""
         beta1, beta2 = self.betas
         self.steps += 1
-        self.exp_avg.mul_(beta1).add_(grad, alpha=1 - beta1)
-        self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+        self.exp_avg *= beta1
+        self.exp_avg += (1 - beta1) * grad
+        self.exp_avg_sq *= beta2
+        self.exp_avg_sq += (1 - beta2) * grad * grad
         step_size = self.lr / (1 - beta1**self.steps)
-        denom = (self.exp_avg_sq / (1 - beta2**self.steps)).sqrt_().add_(self.eps)
-        self.params.addcdiv_(self.exp_avg, denom, value=-step_size)
+        denom = np.sqrt(self.exp_avg_sq / (1 - beta2**self.steps)) + self.eps
+        self.params -= step_size * (self.exp_avg / denom)
 
-    def keep(self, index: Tensor) -> None:
+    def keep(self, index: np.ndarray) -> None:
         """Shrink the batch to the starts in ``index``, moments included."""
-        self.params = self.params.index_select(0, index)
-        self.exp_avg = self.exp_avg.index_select(0, index)
-        self.exp_avg_sq = self.exp_avg_sq.index_select(0, index)
+        self.params = self.params[index]
+        self.exp_avg = self.exp_avg[index]
+        self.exp_avg_sq = self.exp_avg_sq[index]
 
 
 def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, garment: Garment, preset: Preset) -> int:
@@ -276,12 +286,15 @@ def _prunings(preset: Preset, iterations: int, num_starts: int) -> dict[int, tup
 
 
 @contextmanager
-def _torch_threads(count: int | None):
+def _torch_threads(count: int | None, backend: str):
     """Run with ``count`` torch threads: the fit's tensors are small, and on a few cores
-    thread hand-offs (in index_add above all) cost more than they save."""
-    if not count:
+    thread hand-offs (in index_add above all) cost more than they save. The fast
+    backend is single-threaded and does not touch torch."""
+    if not count or backend != "torch":
         yield
         return
+    import torch
+
     previous = torch.get_num_threads()
     torch.set_num_threads(count)
     try:
@@ -291,7 +304,7 @@ def _torch_threads(count: int | None):
 
 
 def fit(
-    silhouette: np.ndarray | Tensor,
+    silhouette,
     preset: str | Preset = "default",
     garment: Garment = JEANS,
     iterations: int = 100,
@@ -300,8 +313,9 @@ def fit(
     device: str = "cpu",
     threads: int | None = 1,
     posture: str = "upright",
+    backend: str | None = None,
 ) -> FitResult:
-    """Fit the garment to a 256x256 silhouette ``S`` by gradient descent.
+    """Fit the garment to a 256x256 silhouette ``S`` (array or tensor) by gradient descent.
 
     All starts are optimised together as one batch with Adam on normalised
     coordinates; after ``preset.prune_fraction`` of the iterations only the
@@ -309,47 +323,52 @@ def fit(
     by ``preset.select``. ``starts``: how many starts (default: the preset's, with its
     upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the
     preset's upright plan, if it has one) or ``any`` (:meth:`Preset.with_posture`).
-    ``threads``: torch threads during the fit (None leaves torch's setting).
+    ``threads``: torch threads during a torch fit (None leaves torch's setting).
+    ``backend``: ``fast`` (numba, CPU) or ``torch``; None: :func:`jeanscv._fast.backend`.
     """
+    from ._fast import backend as resolve_backend
+
     preset = (get_preset(preset) if isinstance(preset, str) else preset).with_posture(posture)
-    with _torch_threads(threads):
-        return _fit(silhouette, preset, garment, iterations, seed, starts, device)
+    backend = resolve_backend(backend, device)
+    with _torch_threads(threads, backend):
+        return _fit(silhouette, preset, garment, iterations, seed, starts, device, backend)
 
 
 def _fit(
-    silhouette: np.ndarray | Tensor,
+    silhouette,
     preset: Preset,
     garment: Garment,
     iterations: int,
     seed: int,
     starts: int | None,
     device: str,
+    backend: str,
 ) -> FitResult:
     began = time.perf_counter()
     if iterations < 0:
         raise JeansError("iterations must be >= 0")
     placements = preset_placements(preset, starts)
     num_starts = len(placements) + 1
-    torch.manual_seed(seed)
-    s = as_silhouette_tensor(silhouette, device)
+    s = as_silhouette_array(silhouette)
 
-    init = torch.as_tensor(initial_placements(garment, num_starts, seed, placements), dtype=torch.float32, device=device)
-    optimizer = BatchAdam((init / CANVAS_SIZE).clone(), lr=preset.learning_rate)
+    init = initial_placements(garment, num_starts, seed, placements)
+    optimizer = BatchAdam(init / CANVAS_SIZE, lr=preset.learning_rate)
     history = np.full((iterations, num_starts), np.nan)
     path = np.full((iterations + 1, num_starts, garment.num_vertices, 2), np.nan)
-    path[0] = init.cpu().numpy()
+    path[0] = init
     active = np.arange(num_starts)  # which starts are still optimised
     prunings = _prunings(preset, iterations, num_starts)
     prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
 
-    def objective(pixels: Tensor, target: Tensor) -> tuple[Tensor, dict[str, Tensor]]:
+    evaluate = make_objective(backend, garment, preset.inter_pairs, preset.weights, device)
+
+    def objective(pixels: np.ndarray, target: np.ndarray, need_grad: bool = True):
         half_width = STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
-        terms = jalgorithm_terms(pixels, target, garment, preset.inter_pairs, half_width)
-        return weighted_total(terms, preset.weights), terms
+        return evaluate(pixels, target, half_width, need_grad)
 
     screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
     sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
-    target_cache: dict[tuple[float, int], Tensor] = {}
+    target_cache: dict[tuple[float, int], np.ndarray] = {}
     for step, sigma in enumerate(sigma_per_iteration):
         # Screening runs on a coarser canvas: which starts are promising shows there
         # at a fraction of the cost, and the normalised vertices carry over as they are.
@@ -357,16 +376,18 @@ def _fit(
         if (sigma, factor) not in target_cache:
             target_cache[sigma, factor] = _area_downsampled(_blurred(s, sigma), factor)
         target = target_cache[sigma, factor]
-        params = optimizer.params.detach().requires_grad_(True)
-        total, _ = objective(params * target.shape[-1], target)
-        if not torch.isfinite(total).any():
+        size = target.shape[-1]
+        total, grad, _ = objective(optimizer.params * size, target)
+        finite = np.isfinite(total)
+        if not finite.any():
             raise JeansError("the fit diverged (non-finite loss)")
         # Diverged starts must not poison the others: drop their gradient.
-        total = torch.where(torch.isfinite(total), total, torch.zeros_like(total))
-        (grad,) = torch.autograd.grad(total.sum(), params)
-        optimizer.step(torch.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0))
-        history[step, active] = total.detach().cpu().numpy()
-        path[step + 1, active] = (optimizer.params * CANVAS_SIZE).cpu().numpy()
+        grad = np.where(finite[:, None, None], grad * size, 0.0)
+        if not np.isfinite(grad).all():
+            grad = np.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0)
+        optimizer.step(grad)
+        history[step, active] = total
+        path[step + 1, active] = optimizer.params * CANVAS_SIZE
         if step in prunings:
             # Successive halving: keep optimising only the most promising starts.
             if preset.upright:
@@ -375,22 +396,22 @@ def _fit(
             else:
                 postures = [posture(v, garment) for v in path[step + 1, active]]
                 order = _survivors(history[step, active], postures, preset)
-            optimizer.keep(torch.as_tensor(order, device=device))
+            optimizer.keep(order)
             active = active[order]
 
-    with torch.no_grad():
-        final = optimizer.params * CANVAS_SIZE
-        totals, terms = objective(final, s)
-        totals = torch.where(torch.isfinite(totals), totals, torch.full_like(totals, math.inf))
-        best = _select(final.double().cpu().numpy(), totals.cpu().numpy(), s.cpu().numpy(), garment, preset)
-        vertices = final[best].double()
-        if not torch.isfinite(vertices).all() or not math.isfinite(float(totals[best])):
-            raise JeansError("the fit diverged (non-finite vertices)")
-        paper = jalgorithm_terms(vertices[None], s.double(), garment, "all")
-        paper_total = float(weighted_total(paper, PAPER_WEIGHTS)[0])
+    final = optimizer.params * CANVAS_SIZE
+    totals, _, terms = objective(final, s, need_grad=False)
+    totals = np.where(np.isfinite(totals), totals, math.inf)
+    best = _select(final, totals, s, garment, preset)
+    vertices = final[best]
+    if not np.isfinite(vertices).all() or not math.isfinite(float(totals[best])):
+        raise JeansError("the fit diverged (non-finite vertices)")
+    paper_objective = make_objective(backend, garment, "all", PAPER_WEIGHTS, device)
+    paper_totals, _, paper = paper_objective(vertices[None], s, STROKE_HALF_WIDTH, False)
+    paper_total = float(paper_totals[0])
 
     return FitResult(
-        vertices=vertices.cpu().numpy(),
+        vertices=vertices,
         objective=float(totals[best]),
         terms={k: float(terms[k][best]) for k in TERM_NAMES},
         paper_terms={k: float(paper[k][0]) for k in PAPER_TERMS},
@@ -400,11 +421,12 @@ def _fit(
         iterations=iterations,
         seed=seed,
         start_index=int(active[best]),
-        start_objectives=[float(v) for v in totals.cpu()],
+        start_objectives=[float(v) for v in totals],
         start_ids=[int(i) for i in active],
         num_starts=num_starts,
         history=history,
         trajectory=path[:, active[best]],
         seconds=time.perf_counter() - began,
         device=str(device),
+        extra={"backend": backend},
     )

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 
 from .errors import JeansError
-from .loss import PAPER_WEIGHTS
+from .terms import PAPER_WEIGHTS
 
 #: ``upright``: the preset's own upright plan (if it has one); ``any``: every posture
 #: competes as before the plan existed (the plan's term, starts, pruning and choice off).

@@ -263,12 +263,18 @@ def test_diverged_fit_is_one_line(tmp_path, run_cli, monkeypatch, iterations):
     or at the final scoring (0 iterations)."""
     from jeanscv import fitter
 
-    real_terms = fitter.jalgorithm_terms
+    real_objective = fitter.make_objective
 
-    def nan_terms(*args, **kwargs):
-        return {name: value * float("nan") for name, value in real_terms(*args, **kwargs).items()}
+    def nan_objective(*args, **kwargs):
+        evaluate = real_objective(*args, **kwargs)
 
-    monkeypatch.setattr(fitter, "jalgorithm_terms", nan_terms)
+        def diverged(*call, **options):
+            totals, grad, terms = evaluate(*call, **options)
+            return totals * float("nan"), grad, {name: value * float("nan") for name, value in terms.items()}
+
+        return diverged
+
+    monkeypatch.setattr(fitter, "make_objective", nan_objective)
     src = write_silhouette_png(tmp_path / "a.png")
     result = run_cli(src, "--iterations", iterations, "--starts", "2", "-q")
     assert result.exit_code == 1

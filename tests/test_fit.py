@@ -144,7 +144,7 @@ def test_batch_adam_matches_torch_adam():
     from jeanscv.fitter import BatchAdam
 
     start = torch.tensor([[1.0, -2.0], [0.5, 3.0]], dtype=torch.float64)
-    ours = BatchAdam(start.clone(), lr=1e-2)
+    ours = BatchAdam(start.numpy().copy(), lr=1e-2)
     theirs_param = start.clone().requires_grad_(True)
     theirs = torch.optim.Adam([theirs_param], lr=1e-2)
     for _ in range(50):
@@ -152,7 +152,7 @@ def test_batch_adam_matches_torch_adam():
         theirs.zero_grad()
         (0.5 * theirs_param**4 - 0.5 * theirs_param**2).sum().backward()
         theirs.step()
-    assert torch.allclose(ours.params, theirs_param.detach(), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(ours.params, theirs_param.detach().numpy(), rtol=1e-10, atol=1e-12)
 
 
 def test_posture_classes():
@@ -170,14 +170,14 @@ def test_posture_classes():
     assert tilt_degrees(rotated(90), JEANS) == pytest.approx(90.0, abs=0.1)
 
 
-def test_a_blur_schedule_runs_coarse_to_fine_with_kornia(zoo):
+def test_a_blur_schedule_runs_coarse_to_fine(zoo):
     import dataclasses
 
     from jeanscv.fitter import _blurred, blur_schedule
     from jeanscv.presets import get_preset
 
     assert blur_schedule((4.0, 2.0), 9) == [4.0] * 3 + [2.0] * 3 + [0.0] * 3
-    silhouette = torch.as_tensor(zoo["disc"])
+    silhouette = zoo["disc"].astype(np.float64)
     blurred = _blurred(silhouette, 3.0)
     # Mass is kept (the disc is far from the border) and the edge is softened.
     assert float(blurred.sum()) == pytest.approx(float(silhouette.sum()), rel=1e-4)

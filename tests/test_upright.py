@@ -63,7 +63,9 @@ def test_posture_any_reproduces_the_earlier_selection(name):
     result = fit(silhouette, posture="any")
     start, finished, vertices = BEFORE[name]
     assert (result.start_index, result.start_ids, result.num_starts) == (start, finished, 12)
-    np.testing.assert_allclose(result.vertices, vertices, atol=2e-3)
+    # Recorded from main's float32 torch fits; CPU fits now run in float64 (both
+    # backends), which moves the same start's vertices by up to about a pixel.
+    np.testing.assert_allclose(result.vertices, vertices, atol=1.5)
     assert not result.preset.weights.get("upright")
 
 

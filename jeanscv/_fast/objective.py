@@ -1,0 +1,492 @@
+"""The jalgorithm's eight terms and the weighted total's gradient in one numba call.
+
+Mirrors :func:`jeanscv.loss.jalgorithm_terms` (the torch reference) for a shared
+``(C, C)`` silhouette, in float64, with the same clamps and the same one-sided
+derivatives at them (``clamp`` passes its gradient at the bound, ``abs`` has
+derivative 0 at 0), so the two agree to rounding. Term order is
+:data:`jeanscv.terms.TERM_NAMES`.
+
+Stroke terms need, per canvas pixel, the alphas of every stroke touching it: each
+stroke's band cells set their edge's bit in a pixel-indexed mask (cleared again after
+the candidate), and where two or more bits are set the other strokes' alphas are read
+from their bands, so unions and pair overlaps cost O(band cells), not O(canvas).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .raster import (
+    BAND_COLUMNS,
+    OUTLINE_POINTS,
+    band_rows,
+    gather_edge,
+    row_prefix,
+    scatter_edge,
+    stroke_band,
+    stroke_band_backward,
+)
+
+_EPS = 1e-6
+
+
+def band_scratch_rows(size: int, half_width: float) -> int:
+    """Rows enough for any stroke band on a ``size`` canvas: segments are clipped to
+    the canvas plus ``half_width + 2`` and a band adds ``half_width`` and a row each side."""
+    return size + 4 * int(math.ceil(half_width)) + 12
+(CENTER, COVERAGE, RIGID, OPEN, CLOSED, INTER, INSIDE, UPRIGHT) = range(8)
+
+
+@njit(cache=True)
+def _upright(v, waist, hems, free, saturated, weight, grad, need_grad):
+    """``upright`` (loss.upright_term) of one candidate; adds ``weight * d/dv`` to ``grad``."""
+    wa, wb, ha, hb = waist[0], waist[1], hems[0], hems[1]
+    down_x = (v[ha, 0] + v[hb, 0] - v[wa, 0] - v[wb, 0]) / 2
+    down_y = (v[ha, 1] + v[hb, 1] - v[wa, 1] - v[wb, 1]) / 2
+    across_x, across_y = v[wb, 0] - v[wa, 0], v[wb, 1] - v[wa, 1]
+    down_norm = math.sqrt(down_x * down_x + down_y * down_y)
+    across_norm = math.sqrt(across_x * across_x + across_y * across_y)
+    down_den, across_den = max(down_norm, _EPS), max(across_norm, _EPS)
+    down_cos = down_y / down_den
+    level_cos = abs(across_x) / across_den
+    raw = free - (down_cos + level_cos) / 2
+    value = min(max(raw, 0.0), saturated)
+    if not need_grad or weight == 0.0 or raw < 0.0 or raw > saturated:
+        return value
+    g = -weight / 2  # d value / d(down_cos) and d(level_cos)
+    # down_cos = down_y / max(|down|, eps)
+    gdx, gdy = 0.0, g / down_den
+    if down_norm >= _EPS and down_norm > 0.0:
+        scale = -g * down_y / (down_den * down_den * down_norm)
+        gdx += scale * down_x
+        gdy += scale * down_y
+    # level_cos = |across_x| / max(|across|, eps)
+    sign = 1.0 if across_x > 0 else (-1.0 if across_x < 0 else 0.0)
+    gax, gay = g * sign / across_den, 0.0
+    if across_norm >= _EPS and across_norm > 0.0:
+        scale = -g * abs(across_x) / (across_den * across_den * across_norm)
+        gax += scale * across_x
+        gay += scale * across_y
+    for vertex, factor in ((ha, 0.5), (hb, 0.5), (wa, -0.5), (wb, -0.5)):
+        grad[vertex, 0] += factor * gdx
+        grad[vertex, 1] += factor * gdy
+    grad[wb, 0] += gax
+    grad[wb, 1] += gay
+    grad[wa, 0] -= gax
+    grad[wa, 1] -= gay
+    return value
+
+
+@njit(cache=True)
+def _whole(w: float) -> bool:
+    """Whether a winding value is 0, 1 or beyond to rounding: cells between the pieces
+    of a row that hold such a value have coverage 0 or 1 and (analytically) no
+    gradient, so they are summed by span from row prefix sums of ``S``."""
+    a = abs(w)
+    return a <= 1e-12 or a >= 1.0 - 1e-12
+
+
+@njit(cache=True)
+def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, wind, cell_grad, prefix, col0,
+                ts, axes, lines):
+    """``(coverage, inside)`` of one candidate; adds their weighted gradient to ``grad``.
+
+    ``s_rows``: ``(C, C + 1)`` prefix sums of ``S`` along rows. Work is O(pieces + rows
+    of the bounding box): cells left without a piece in a run take the run's sums.
+    """
+    size = s.shape[0]
+    n = v.shape[0]
+    y_lo, y_hi, x_lo, x_hi = math.inf, -math.inf, math.inf, -math.inf
+    for i in range(n):
+        x_lo, x_hi = min(x_lo, v[i, 0]), max(x_hi, v[i, 0])
+        y_lo, y_hi = min(y_lo, v[i, 1]), max(y_hi, v[i, 1])
+    oy = int(max(math.floor(max(y_lo, -1.0)), 0.0))
+    ox = int(max(math.floor(max(x_lo, -1.0)), 0.0))
+    rows = int(min(math.floor(min(y_hi, size + 1.0)) + 1.0, size)) - oy
+    cols = int(min(math.floor(min(x_hi, size + 1.0)) + 1.0, size)) - ox
+    rows, cols = max(rows, 0), max(cols, 0)
+    area = not_on_body = uncovered_in = s_window = 0.0
+    if rows and cols:
+        diff[:rows, : cols + 2] = 0.0
+        col0[:rows] = ox
+        for i in range(n):
+            j = (i + 1) % n
+            scatter_edge(v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size),
+                         oy, col0, rows, cols, diff, ts, axes, lines)
+        for r in range(rows):
+            y = oy + r
+            s_window += s_rows[y, ox + cols] - s_rows[y, ox]
+            acc = 0.0
+            c = 0
+            while c < cols:
+                acc += diff[r, c]
+                end = c + 1
+                while end < cols and diff[r, end] == 0.0:
+                    end += 1
+                f = min(abs(acc), 1.0)
+                last = end
+                if end - c > 1 and _whole(acc):
+                    # the cells after the first hold f each, with no gradient
+                    run = end - c - 1
+                    run_s = s_rows[y, ox + end] - s_rows[y, ox + c + 1]
+                    area += f * run
+                    if f >= 0.5:
+                        not_on_body += f * run - run_s
+                    else:
+                        uncovered_in += run_s - f * run
+                    wind[r, c + 1] = math.nan  # no gradient: the backward pass skips the run
+                    diff[r, c + 1] = end  # (the difference buffer is spent: it keeps where the run ends)
+                    last = c + 1
+                for cell in range(c, last):
+                    wind[r, cell] = acc
+                    sv = s[y, ox + cell]
+                    area += f
+                    if f > sv:
+                        not_on_body += f - sv
+                    else:
+                        uncovered_in += sv - f
+                c = end
+    total = max(s_total, _EPS)
+    uncovered = (s_total - s_window) + uncovered_in
+    coverage = (0.5 - uncovered / total) ** 2
+    area_den = max(area, _EPS)
+    inside = not_on_body / area_den
+    if not need_grad or not rows or not cols or (w_cov == 0.0 and w_inside == 0.0):
+        return coverage, inside
+    d_uncovered = w_cov * -2.0 * (0.5 - uncovered / total) / total
+    d_area = -w_inside * not_on_body / (area_den * area_den) if area >= _EPS else 0.0
+    for r in range(rows):
+        running = 0.0
+        c = 0
+        while c < cols:
+            w = wind[r, c]
+            if math.isnan(w):
+                end = int(diff[r, c])
+                prefix[r, c:end] = running
+                cell_grad[r, c:end] = 0.0
+                c = end
+                continue
+            prefix[r, c] = running
+            cell_grad[r, c] = 0.0
+            c += 1
+            if w == 0.0 or abs(w) > 1.0:
+                continue
+            f = abs(w)
+            sv = s[oy + r, ox + c - 1]
+            g = d_area
+            if sv - f >= 0.0:
+                g -= d_uncovered
+            if f - sv >= 0.0:
+                g += w_inside / area_den
+            g = g if w > 0 else -g
+            cell_grad[r, c - 1] = g
+            running += g
+        prefix[r, cols] = running
+    g4 = np.zeros(4)
+    for i in range(n):
+        j = (i + 1) % n
+        g4[:] = 0.0
+        gather_edge(v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size),
+                    oy, col0, rows, cols, cell_grad, prefix, ts, axes, lines, g4)
+        grad[i, 0] += g4[0] - g4[2]
+        grad[i, 1] += g4[1] - g4[3]
+        grad[j, 0] += g4[2]
+        grad[j, 1] += g4[3]
+    return coverage, inside
+
+
+@njit(cache=True)
+def _pixel(row_start, row_col_start, x_major, r, c):
+    """Canvas ``(x, y)`` of band cell ``(r, c)``; ``row_col_start``: the row's first column."""
+    major, minor = row_start + r, row_col_start + c
+    return (major, minor) if x_major else (minor, major)
+
+
+@njit(cache=True)
+def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
+    """Stroke ``k``'s alpha at canvas pixel ``(x, y)``, read from its band."""
+    major, minor = (x, y) if x_major[k] else (y, x)
+    r = major - row_start[k]
+    if r < 0 or r >= band_count[k]:
+        return 0.0
+    c = minor - col_start[k, r]
+    if c < 0 or c >= BAND_COLUMNS:
+        return 0.0
+    return min(abs(band_wind[k, r, c]), 1.0)
+
+
+@njit(cache=True)
+def _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here):
+    """Every stroke's alpha at pixel ``(x, y)`` into ``here`` (0 where absent), read once
+    from the bands for the unions and the pairs; stroke ``e``'s own is ``alpha``."""
+    for k in range(here.shape[0]):
+        if k == e:
+            here[k] = alpha
+        elif (bits >> k) & 1:
+            here[k] = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+        else:
+            here[k] = 0.0
+
+
+@njit(cache=True)
+def objective(
+    vertices, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, need_grad,
+    terms, grad, mask, diff, wind, cell_grad, prefix, band_diff, band_wind,
+):
+    """All eight terms of each candidate and the gradient of the weighted total.
+
+    Args:
+        vertices: ``(B, N, 2)`` canvas pixels of an ``(C, C)`` silhouette ``s``;
+            s_rows: ``(C, C + 1)`` its prefix sums along rows.
+        weights: ``(8,)`` in term order; residual: the ``(N, N)`` affine residual operator.
+        is_open, is_closed: ``(N,)`` edge labels; pair: ``(N, N)`` bool, ``pair[i, j]``
+            for ``i < j`` when the pair counts in ``L_inter``.
+        cos_r, sin_r: the capsule cap offsets; need_grad: compute ``grad``.
+        terms: ``(B, 8)`` out; grad: ``(B, N, 2)`` out, d(weighted total)/d vertices.
+        mask: ``(C * C,)`` int64 scratch, all zero (left zero): the strokes at each pixel;
+            diff, cell_grad, prefix: ``(C, C + 2)``; wind: ``(C, C)``; band_diff:
+            ``(N, rows, 15)``, band_wind: ``(N, rows, 13)`` with rows >= any band's
+            (:func:`band_scratch_rows`): scratch reused across calls, so that no call
+            pays for fresh pages.
+    """
+    batch, n = vertices.shape[0], vertices.shape[1]
+    size = s.shape[0]
+    s_total = 0.0
+    for y in range(size):
+        s_total += s_rows[y, size]
+    margin = half_width + 2.0
+    low, high = -margin, size + margin
+    free = math.cos(math.radians(20.0))
+    saturated = free - math.cos(math.radians(60.0))
+
+    finite = np.ones(batch, np.bool_)
+    rows_limit = 1
+    for b in range(batch):
+        for i in range(n):
+            if not (math.isfinite(vertices[b, i, 0]) and math.isfinite(vertices[b, i, 1])):
+                finite[b] = False
+        if finite[b]:
+            for i in range(n):
+                j = (i + 1) % n
+                rows_limit = max(rows_limit, band_rows(vertices[b, i, 0], vertices[b, i, 1], vertices[b, j, 0],
+                                                       vertices[b, j, 1], half_width, low, high))
+
+    crossings = 4 * (size + 4 * int(margin) + 16)
+    ts, axes, lines = np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings)
+    col0 = np.empty(max(size, rows_limit), np.int64)
+    band_grad = np.empty((rows_limit, BAND_COLUMNS + 1))
+    band_prefix = np.empty((rows_limit, BAND_COLUMNS + 1))
+    col_start = np.empty((n, rows_limit), np.int64)
+    band_lo = np.empty((n, rows_limit), np.int64)
+    band_hi = np.empty((n, rows_limit), np.int64)
+    row_start = np.empty(n, np.int64)
+    band_count = np.empty(n, np.int64)
+    x_major = np.empty(n, np.bool_)
+    here = np.empty(n)  # the strokes' alphas at one pixel
+    labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
+    labels[0], labels[1] = is_open, is_closed
+    outline = np.empty((OUTLINE_POINTS, 2))
+    g_outline = np.empty((OUTLINE_POINTS, 2))
+    areas = np.empty(n)
+    on_body = np.empty(n)
+    overlap = np.empty((n, n))
+    pair_excess = np.empty((n, n))
+
+    for b in range(batch):
+        v = vertices[b]
+        g_v = grad[b]
+        g_v[:, :] = 0.0
+        if not finite[b]:
+            terms[b, :] = np.nan
+            continue
+
+        # center and rigid, on normalised coordinates
+        wx = (v[waist[0], 0] + v[waist[1], 0]) / size / 2
+        wy = (v[waist[0], 1] + v[waist[1], 1]) / size / 2
+        terms[b, CENTER] = (wx - 0.5) ** 2 + (wy - 0.5) ** 2
+        rigid = 0.0
+        res = np.zeros((n, 2))
+        for i in range(n):
+            for k in range(n):
+                res[i, 0] += residual[i, k] * (v[k, 0] / size)
+                res[i, 1] += residual[i, k] * (v[k, 1] / size)
+            rigid += res[i, 0] ** 2 + res[i, 1] ** 2
+        terms[b, RIGID] = rigid
+        if need_grad:
+            for k in range(2):
+                g_v[waist[k], 0] += weights[CENTER] * (wx - 0.5) / size
+                g_v[waist[k], 1] += weights[CENTER] * (wy - 0.5) / size
+            if weights[RIGID] != 0.0:
+                for k in range(n):
+                    for i in range(n):
+                        g_v[k, 0] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 0] / size
+                        g_v[k, 1] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 1] / size
+        terms[b, UPRIGHT] = _upright(v, waist, hems, free, saturated, weights[UPRIGHT], g_v, need_grad)
+
+        coverage, inside = _fill_terms(v, s, s_rows, s_total, weights[COVERAGE], weights[INSIDE], g_v, need_grad,
+                                       diff, wind, cell_grad, prefix, col0, ts, axes, lines)
+        terms[b, COVERAGE] = coverage
+        terms[b, INSIDE] = inside
+
+        # strokes: bands, then pixel scratch
+        for e in range(n):
+            f = (e + 1) % n
+            row_start[e], band_count[e], x_major[e], empty = stroke_band(
+                v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, rows_limit, cos_r, sin_r, outline,
+                col_start[e], band_diff[e], ts, axes, lines,
+            )
+            areas[e] = on_body[e] = 0.0
+            for r in range(band_count[e]):
+                acc = 0.0
+                lo, hi = BAND_COLUMNS, 0
+                for c in range(BAND_COLUMNS):
+                    acc += band_diff[e, r, c]
+                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                    if x < 0 or x >= size or y < 0 or y >= size:
+                        acc_here = 0.0
+                    else:
+                        acc_here = acc
+                    band_wind[e, r, c] = acc_here
+                    alpha = min(abs(acc_here), 1.0)
+                    if alpha > 0.0:
+                        lo, hi = min(lo, c), c + 1
+                        p = y * size + x
+                        areas[e] += alpha
+                        on_body[e] += alpha * s[y, x]
+                        mask[p] |= mask.dtype.type(1 << e)
+                band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
+
+        # unions of the open and the closed edges: excess where their strokes stack past 1
+        union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
+        overlap[:, :] = 0.0
+        pair_excess[:, :] = 0.0
+        for e in range(n):
+            for r in range(band_count[e]):
+                for c in range(band_lo[e, r], band_hi[e, r]):
+                    alpha = min(abs(band_wind[e, r, c]), 1.0)
+                    if alpha == 0.0:
+                        continue
+                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                    p = y * size + x
+                    bits = mask[p]
+                    if bits & (bits - 1) == 0:
+                        continue  # one stroke only: no excess, no overlap
+                    if bits & ((1 << e) - 1):
+                        continue  # the pixel's lowest stroke counts it, once
+                    _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
+                    for u in range(2):
+                        stacked = 0.0
+                        for k in range(n):
+                            if labels[u, k]:
+                                stacked += here[k]
+                        if stacked > 1.0:
+                            union[u, 2] += stacked - 1.0
+                            union[u, 3] += (stacked - 1.0) * s[y, x]
+                    for i in range(e, n):
+                        if here[i] == 0.0:
+                            continue
+                        for k in range(i + 1, n):
+                            if pair[i, k] and here[k] != 0.0:
+                                overlap[i, k] += here[i] * here[k]
+                                pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
+        for e in range(n):
+            for u in range(2):
+                if labels[u, e]:
+                    union[u, 0] += on_body[e]
+                    union[u, 1] += areas[e]
+        union_value = np.empty(2)
+        union_den = np.empty(2)
+        for u in range(2):
+            raw = union[u, 1] - union[u, 2]
+            union_den[u] = max(raw, _EPS)
+            union_value[u] = (union[u, 0] - union[u, 3]) / union_den[u]
+        terms[b, OPEN] = -union_value[0]
+        terms[b, CLOSED] = union_value[1]
+        inter = 0.0
+        for e in range(n):
+            for k in range(e + 1, n):
+                if pair[e, k]:
+                    inter += overlap[e, k] / max(areas[e] + areas[k] - pair_excess[e, k], _EPS)
+        terms[b, INTER] = inter
+
+        if need_grad and (weights[OPEN] != 0.0 or weights[CLOSED] != 0.0 or weights[INTER] != 0.0):
+            # d total / d alpha = per-edge constant + per-pixel parts
+            union_weight = np.array([-weights[OPEN], weights[CLOSED]])
+            union_d_den = np.empty(2)
+            for u in range(2):
+                raw = union[u, 1] - union[u, 2]
+                union_d_den[u] = -(union[u, 0] - union[u, 3]) / union_den[u] ** 2 if raw >= _EPS else 0.0
+            base = np.zeros(n)
+            pair_d_den = np.zeros((n, n))
+            pair_den = np.ones((n, n))
+            for e in range(n):
+                for k in range(e + 1, n):
+                    if pair[e, k]:
+                        raw = areas[e] + areas[k] - pair_excess[e, k]
+                        pair_den[e, k] = max(raw, _EPS)
+                        if raw >= _EPS:
+                            pair_d_den[e, k] = -weights[INTER] * overlap[e, k] / pair_den[e, k] ** 2
+                        base[e] += pair_d_den[e, k]
+                        base[k] += pair_d_den[e, k]
+            for e in range(n):
+                f = (e + 1) % n
+                # d total / d alpha at a pixel no other stroke touches: lone + lone_s * S
+                lone, lone_s = base[e], 0.0
+                for u in range(2):
+                    if labels[u, e] and union_weight[u] != 0.0:
+                        lone += union_weight[u] * union_d_den[u]
+                        lone_s += union_weight[u] / union_den[u]
+                for r in range(band_count[e]):
+                    band_grad[r, :] = 0.0
+                    for c in range(band_lo[e, r], band_hi[e, r]):
+                        w = band_wind[e, r, c]
+                        alpha = min(abs(w), 1.0)
+                        if alpha == 0.0 or abs(w) > 1.0:
+                            continue
+                        x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                        p = y * size + x
+                        bits = mask[p]
+                        if bits & (bits - 1) == 0:
+                            band_grad[r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
+                            continue
+                        g = base[e]
+                        _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
+                        for u in range(2):
+                            if not labels[u, e] or union_weight[u] == 0.0:
+                                continue
+                            stacked = 0.0
+                            for k in range(n):
+                                if labels[u, k]:
+                                    stacked += here[k]
+                            if stacked <= 1.0:
+                                g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
+                        for k in range(n):
+                            if k == e or not (bits >> k) & 1:
+                                continue
+                            i, j = min(e, k), max(e, k)
+                            if not pair[i, j]:
+                                continue
+                            other = here[k]
+                            g += weights[INTER] * other / pair_den[i, j]
+                            if alpha + other - 1.0 >= 0.0:
+                                g -= pair_d_den[i, j]
+                        band_grad[r, c] = g if w > 0 else -g
+                gpx, gpy, gqx, gqy = stroke_band_backward(
+                    v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, row_start[e], band_count[e],
+                    cos_r, sin_r, outline, g_outline, col_start[e], band_grad, band_prefix, ts, axes, lines,
+                )
+                g_v[e, 0] += gpx
+                g_v[e, 1] += gpy
+                g_v[f, 0] += gqx
+                g_v[f, 1] += gqy
+
+        # leave the scratch clean for the next candidate
+        for e in range(n):
+            for r in range(band_count[e]):
+                for c in range(band_lo[e, r], band_hi[e, r]):
+                    if band_wind[e, r, c] != 0.0:
+                        x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                        mask[y * size + x] = 0

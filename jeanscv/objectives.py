@@ -1,0 +1,74 @@
+"""The fit's objective, evaluated by the chosen backend: numpy in, numpy out.
+
+``fast`` is the numba kernel (:mod:`jeanscv._fast`), ``torch`` the differentiable
+reference (:mod:`jeanscv.loss`, autograd), which also runs on CUDA. Both take
+vertices in pixels of the target's canvas and return the weighted total per
+candidate, its gradient with respect to those vertices, and every term. On the CPU
+both work in float64 and agree to rounding, so a fit takes the same path either way.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .garments import Garment
+from .terms import TERM_NAMES
+
+#: ``(pixels (B, N, 2), target (C, C), stroke half width, need_grad)`` ->
+#: ``(totals (B,), d totals / d pixels (B, N, 2) or None, {term: (B,)})``.
+ObjectiveFunction = Callable[[np.ndarray, np.ndarray, float, bool], tuple[np.ndarray, np.ndarray | None, dict]]
+
+
+def make_objective(
+    backend: str, garment: Garment, inter_pairs: str, weights: dict[str, float], device: str = "cpu"
+) -> ObjectiveFunction:
+    """The weighted objective of ``garment`` with ``inter_pairs`` and ``weights``."""
+    if inter_pairs not in ("all", "non_adjacent"):
+        from .errors import JeansError
+
+        raise JeansError(f"unknown inter_pairs {inter_pairs!r} (use all or non_adjacent)")
+    if backend == "fast":
+        from ._fast import Objective
+
+        kernel = Objective(garment, inter_pairs, weights)
+
+        def fast(pixels, target, half_width, need_grad=True):
+            totals, grad, terms = kernel(pixels, target, half_width, need_grad)
+            return totals, grad if need_grad else None, {name: terms[:, i] for i, name in enumerate(TERM_NAMES)}
+
+        return fast
+    return _torch_objective(garment, inter_pairs, weights, device)
+
+
+def _torch_objective(garment: Garment, inter_pairs: str, weights: dict[str, float], device: str) -> ObjectiveFunction:
+    import torch
+
+    from .loss import jalgorithm_terms, weighted_total
+
+    dtype = torch.float64 if device == "cpu" else torch.float32
+    targets: dict[int, tuple[np.ndarray, torch.Tensor]] = {}
+
+    def on_device(target: np.ndarray) -> torch.Tensor:
+        # The fit passes a handful of targets (one per blur and canvas): convert each once.
+        if id(target) not in targets or targets[id(target)][0] is not target:
+            targets[id(target)] = (target, torch.as_tensor(target, dtype=dtype, device=device))
+        return targets[id(target)][1]
+
+    def evaluate(pixels, target, half_width, need_grad=True):
+        points = torch.as_tensor(np.asarray(pixels), dtype=dtype, device=device)
+        with torch.set_grad_enabled(need_grad):
+            points.requires_grad_(need_grad)
+            terms = jalgorithm_terms(points, on_device(target), garment, inter_pairs, half_width)
+            total = weighted_total(terms, weights)
+            grad = None
+            if need_grad:
+                # Diverged starts must not poison the others: drop their gradient.
+                finite = torch.where(torch.isfinite(total), total, torch.zeros_like(total))
+                (grad,) = torch.autograd.grad(finite.sum(), points)
+                grad = grad.double().cpu().numpy()
+        as_numpy = {name: value.detach().double().cpu().numpy() for name, value in terms.items()}
+        return total.detach().double().cpu().numpy(), grad, as_numpy
+
+    return evaluate
