@@ -372,7 +372,8 @@ def _ray_hit(layout: _Layout, origin: np.ndarray, direction: np.ndarray) -> floa
     # Solve origin + t * direction = start + s * edge for every edge at once (Cramer).
     det = edge[:, 0] * direction[1] - edge[:, 1] * direction[0]
     rel = start - origin
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # Near-parallel edges (tiny det) overflow; the hit test below drops them.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         t = (edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0]) / det
         s = (direction[0] * rel[:, 1] - direction[1] * rel[:, 0]) / det
     hit = (np.abs(det) > 1e-12) & (s >= 0) & (s <= 1) & (t > 1e-6)
