@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .masks import border_ring
 from .saliency import SuperpixelGraph, focus, saliency_map
 
 _SUPERPIXEL_SIZE = 12  # SLIC region size, pixels (about 300 superpixels at 240x180)
@@ -118,9 +119,7 @@ def saliency_labels(saliency: np.ndarray, seeding: str) -> np.ndarray | None:
         labels[y0:y1, x0:x1] = cv2.GC_PR_FGD
         box = labels == cv2.GC_PR_FGD
         labels[box & (saliency < _SEED_DROP * level)] = cv2.GC_PR_BGD
-        ring = np.zeros((height, width), bool)
-        ring[:2], ring[-2:], ring[:, :2], ring[:, -2:] = True, True, True, True
-        labels[ring & ~salient] = cv2.GC_BGD
+        labels[border_ring((height, width), 2) & ~salient] = cv2.GC_BGD
         return labels
     labels = np.full((height, width), cv2.GC_PR_BGD, np.uint8)
     labels[salient] = cv2.GC_PR_FGD

@@ -13,10 +13,10 @@ input resolution with linear interpolation and thresholded at 0.5 (a given alpha
 decides the pixels within one working pixel of the boundary at full resolution), so a
 24-MP photo costs about as much as a 640-pixel one (about 1 s, 0.5 GB peak).
 
-How ``auto`` chooses (no alpha, mask or rect given): six hypotheses are made at coarse
+How ``auto`` chooses (no alpha, mask or rect given): five hypotheses are made at coarse
 resolution: the best Otsu split of four channels at two blurs, GrabCut seeded where
 colours are rare on the border (weighted by spectral-residual saliency), GrabCut from
-a centred rectangle, and three GrabCuts seeded by boundary-connectivity saliency on
+a centred rectangle, and two GrabCuts seeded by boundary-connectivity saliency on
 superpixels (:mod:`jeanscv.silhouette.saliency`). The one the others agree with most,
 along strong colour edges, wins (:mod:`jeanscv.silhouette.consensus`) and is refined at
 working resolution; ``details`` records every hypothesis's measures and the reason.
@@ -24,9 +24,8 @@ working resolution; ``details`` records every hypothesis's measures and the reas
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-
-from concurrent.futures import Future, ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -497,25 +496,9 @@ def _grabcut_or_none(image: np.ndarray, labels: np.ndarray, iterations: int) -> 
         return None
 
 
-class _Inline:
-    """A stand-in for an executor with one thread: runs each job when submitted."""
-
-    def __enter__(self) -> _Inline:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        return None
-
-    def submit(self, fn, *args) -> Future:
-        job: Future = Future()
-        job.set_result(fn(*args))
-        return job
-
-
-def _hypothesis_pool() -> ThreadPoolExecutor | _Inline:
-    """Threads for the hypotheses' GrabCuts: as many as OpenCV may use, up to 4."""
-    threads = min(4, max(1, cv2.getNumThreads()))
-    return ThreadPoolExecutor(threads) if threads > 1 else _Inline()
+def _hypothesis_pool() -> ThreadPoolExecutor:
+    """Threads for the hypotheses' GrabCuts: as many as OpenCV may use, 1 to 4."""
+    return ThreadPoolExecutor(min(4, max(1, cv2.getNumThreads())))
 
 
 def _grabcut_hypothesis(scene: _Scene) -> tuple[str, np.ndarray | None]:
