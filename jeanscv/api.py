@@ -15,7 +15,7 @@ import numpy as np
 from .errors import JeansError
 from .framing import Framing, frame_mask, identity_framing
 from .garments import JEANS, Garment, get_garment
-from .geometry import CANVAS_SIZE
+from .geometry import CANVAS_SIZE, mask_box
 from .io.svg import SVG_EXTENSIONS
 
 KINDS = ("auto", "silhouette", "photo")
@@ -271,7 +271,6 @@ def extract_silhouettes(
 
 def _framed(segmentation, point: tuple[float, float] | None = None) -> Silhouette:
     """A :class:`Silhouette` of one object's :class:`Segmentation` (its bool mask kept)."""
-    from .silhouette.objects import mask_box
 
     canvas, framing = frame_mask(segmentation.mask)
     details = {**segmentation.details, "box": list(mask_box(segmentation.mask))}
@@ -398,7 +397,6 @@ def _box_of(silhouette: Silhouette) -> tuple[int, int, int, int]:
     """The object's bounding box ``(x, y, w, h)`` in image pixels (an SVG's, through its framing)."""
     if "box" in silhouette.details:
         return tuple(silhouette.details["box"])
-    from .silhouette.objects import mask_box
 
     x, y, w, h = mask_box(silhouette.mask)
     if not silhouette.mask_is_canvas:

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from .errors import JeansError
-from .geometry import CANVAS_SIZE, apply_affine, invert_affine
+from .geometry import CANVAS_SIZE, apply_affine, invert_affine, mask_box
 
 #: Fraction of the canvas side that the object's longer side spans.
 DEFAULT_FILL = 0.9
@@ -71,14 +71,8 @@ def frame_mask(mask: np.ndarray, fill: float = DEFAULT_FILL) -> tuple[np.ndarray
     alpha = np.asarray(mask)
     if alpha.ndim != 2:
         raise JeansError(f"mask must be 2-D, got shape {alpha.shape}")
-    # A bool mask stays bool until cropped: a full-frame float copy of a 24-MP mask
-    # costs ~100 MB and most of this function's time.
-    solid = alpha if alpha.dtype == bool else alpha.astype(np.float32, copy=False) >= 0.5
-    rows = np.flatnonzero(solid.any(axis=1))
-    cols = np.flatnonzero(solid.any(axis=0))
-    if rows.size == 0:
-        raise JeansError("silhouette is empty")
-    x0, x1, y0, y1 = cols[0], cols[-1] + 1, rows[0], rows[-1] + 1
+    x0, y0, box_width, box_height = mask_box(alpha)
+    x1, y1 = x0 + box_width, y0 + box_height
     # An integer side and origin keep the crop on the pixel grid, so the resize is
     # a pure area average and canvas_to_image is exact.
     side = int(np.ceil(max(x1 - x0, y1 - y0) / fill))

@@ -15,7 +15,8 @@ from synthetic_photos import iou, two_objects
 from jeanscv.api import apply_jeans, extract_silhouettes
 from jeanscv.compositing import polygon_coverage_patch
 from jeanscv.errors import JeansError, OptionError
-from jeanscv.silhouette.objects import check_point, mask_box, object_at, split_objects
+from jeanscv.geometry import mask_box
+from jeanscv.silhouette.objects import check_point, object_at, split_objects
 from jeanscv.silhouette.seeded import point_labels, segment_at_point
 
 FIT = dict(iterations=40, starts=4)

@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from jeanscv.errors import JeansError, OptionError
+from jeanscv.geometry import mask_box
 
 from .masks import MORPH_FRACTION, disk, outer_contour, resize, shape_for
 
@@ -47,17 +48,6 @@ class PhotoObject:
     box: tuple[int, int, int, int]
     area: int
     contour: np.ndarray
-
-
-def mask_box(mask: np.ndarray) -> tuple[int, int, int, int]:
-    """``(x, y, w, h)`` bounding box of the True pixels of a ``(H, W)`` mask."""
-    solid = np.asarray(mask)
-    solid = solid if solid.dtype == bool else solid >= 0.5
-    rows = np.flatnonzero(solid.any(axis=1))
-    cols = np.flatnonzero(solid.any(axis=0))
-    if rows.size == 0:
-        raise JeansError("silhouette is empty")
-    return int(cols[0]), int(rows[0]), int(cols[-1] + 1 - cols[0]), int(rows[-1] + 1 - rows[0])
 
 
 def split_objects(
@@ -164,4 +154,4 @@ def object_at(
     return best if distances[best] <= tolerance * max(shape) else None
 
 
-__all__ = ["MIN_FRACTION", "POINT_TOLERANCE", "PhotoObject", "check_point", "mask_box", "object_at", "split_objects"]
+__all__ = ["MIN_FRACTION", "POINT_TOLERANCE", "PhotoObject", "check_point", "object_at", "split_objects"]
