@@ -16,6 +16,7 @@ import numpy as np
 
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
+from .objectives import polygon_coverage, stroke_coverage
 from .terms import affine_residual_operator
 
 
@@ -73,21 +74,10 @@ class RuleReport:
 
 def rasterized(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(fill (256, 256), strokes (N, 256, 256))``: the exact coverage of the closed
-    polygon and of its edges' 5-px strokes, by the numba kernel when numba is
-    installed (no torch import), else by the torch rasterizer."""
+    polygon and of its edges' 5-px strokes (:mod:`jeanscv.objectives`)."""
     v = np.asarray(vertices, dtype=np.float64)
     start, end = v, np.roll(v, -1, axis=0)
-    from . import _fast
-
-    if _fast.available():
-        return _fast.polygon_coverage(v, CANVAS_SIZE, CANVAS_SIZE), _fast.stroke_coverage(start, end)
-    import torch
-
-    from .render import polygon_coverage, stroke_coverage
-
-    fill = polygon_coverage(torch.as_tensor(v)[None], CANVAS_SIZE, CANVAS_SIZE)[0]
-    strokes = stroke_coverage(torch.as_tensor(start), torch.as_tensor(end), CANVAS_SIZE, CANVAS_SIZE)
-    return fill.numpy(), strokes.numpy()
+    return polygon_coverage(v, CANVAS_SIZE, CANVAS_SIZE), stroke_coverage(start, end, CANVAS_SIZE, CANVAS_SIZE)
 
 
 def rule_report(vertices: np.ndarray, silhouette, garment: Garment = JEANS) -> RuleReport:

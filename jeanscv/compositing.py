@@ -28,6 +28,7 @@ import numpy as np
 
 from .errors import JeansError
 from .garments import JEANS, Garment
+from .objectives import polygon_coverage
 
 #: The paper's jeans colour (RGB), used by ``style="flat"`` and the figures.
 FLAT_BLUE = (0, 0, 255)
@@ -93,20 +94,6 @@ def _patch_box(vertices: np.ndarray, height: int, width: int, margin: int = 2) -
     return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
 
 
-def _strip_coverage(vertices: np.ndarray, height: int, width: int) -> np.ndarray:
-    """Coverage of a polygon on a ``height x width`` grid: the numba kernel when numba
-    is installed (no torch import), else the torch rasterizer; the same exact area."""
-    from . import _fast
-
-    if _fast.available():
-        return _fast.polygon_coverage(vertices, height, width)
-    import torch
-
-    from .render import polygon_coverage
-
-    return polygon_coverage(torch.from_numpy(np.asarray(vertices, np.float64)), height, width).numpy()
-
-
 def polygon_coverage_patch(vertices: np.ndarray, height: int, width: int) -> np.ndarray:
     """Exact anti-aliased coverage of a polygon on an ``height x width`` pixel grid.
 
@@ -121,7 +108,7 @@ def polygon_coverage_patch(vertices: np.ndarray, height: int, width: int) -> np.
     rows = max(1, _STRIP_PIXELS // max(width, 1))
     for top in range(0, height, rows):
         strip = min(rows, height - top)
-        out[top : top + strip] = _strip_coverage(vertices - np.array([0.0, top]), strip, width)
+        out[top : top + strip] = polygon_coverage(vertices - np.array([0.0, top]), strip, width)
     return out
 
 

@@ -20,7 +20,6 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .errors import JeansError
 from .garments import JEANS, Garment
 from .render import coverage_from_winding, polygon_edges, rasterize
 from .terms import (  # noqa: F401 - re-exported: loss is where the API has named them
@@ -32,6 +31,7 @@ from .terms import (  # noqa: F401 - re-exported: loss is where the API has name
     UPRIGHT_FREE_DEGREES,
     UPRIGHT_SATURATE_DEGREES,
     affine_residual_operator,
+    check_inter_pairs,
 )
 
 _EPS = 1e-6
@@ -240,8 +240,7 @@ def jalgorithm_terms(
         ``{name: (B,) tensor}`` for ``center, coverage, rigid, open, closed, inter,
         inside, upright`` (:func:`upright_term`).
     """
-    if inter_pairs not in INTER_PAIRS:
-        raise JeansError(f"unknown inter_pairs {inter_pairs!r} (use {' or '.join(INTER_PAIRS)})")
+    check_inter_pairs(inter_pairs)
     batch = vertices.shape[0]
     silhouette = silhouette.to(vertices.dtype)
     scale = float(silhouette.shape[-1])

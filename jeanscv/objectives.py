@@ -1,4 +1,5 @@
-"""The fit's objective, evaluated by the chosen backend: numpy in, numpy out.
+"""The fit's objective, evaluated by the chosen backend: numpy in, numpy out; and the
+exact polygon and stroke coverage that the rule checks and the compositor need.
 
 ``fast`` is the numba kernel (:mod:`jeanscv._fast`), ``torch`` the differentiable
 reference (:mod:`jeanscv.loss`, autograd), which also runs on CUDA. Both take
@@ -14,7 +15,7 @@ from typing import Callable
 import numpy as np
 
 from .garments import Garment
-from .terms import TERM_NAMES
+from .terms import TERM_NAMES, check_inter_pairs
 
 #: ``(pixels (B, N, 2), target (C, C), stroke half width, need_grad)`` ->
 #: ``(totals (B,), d totals / d pixels (B, N, 2) or None, {term: (B,)})``.
@@ -25,10 +26,7 @@ def make_objective(
     backend: str, garment: Garment, inter_pairs: str, weights: dict[str, float], device: str = "cpu"
 ) -> ObjectiveFunction:
     """The weighted objective of ``garment`` with ``inter_pairs`` and ``weights``."""
-    if inter_pairs not in ("all", "non_adjacent"):
-        from .errors import JeansError
-
-        raise JeansError(f"unknown inter_pairs {inter_pairs!r} (use all or non_adjacent)")
+    check_inter_pairs(inter_pairs)
     if backend == "fast":
         from ._fast import Objective
 
@@ -72,3 +70,32 @@ def _torch_objective(garment: Garment, inter_pairs: str, weights: dict[str, floa
         return total.detach().double().cpu().numpy(), grad, as_numpy
 
     return evaluate
+
+
+def polygon_coverage(vertices: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Exact coverage ``(height, width)`` of the closed polygon ``vertices`` ``(N, 2)``:
+    the numba kernel when numba is installed (no torch import), else the torch
+    rasterizer; the same exact area either way."""
+    from . import _fast
+
+    if _fast.available():
+        return _fast.polygon_coverage(vertices, height, width)
+    import torch
+
+    from .render import polygon_coverage as torch_coverage
+
+    return torch_coverage(torch.as_tensor(np.asarray(vertices, np.float64)), height, width).numpy()
+
+
+def stroke_coverage(start: np.ndarray, end: np.ndarray, height: int, width: int) -> np.ndarray:
+    """``(M, height, width)`` alphas of the 5-px strokes of segments ``(M, 2)``, by the
+    same backend as :func:`polygon_coverage`."""
+    from . import _fast
+
+    if _fast.available():
+        return _fast.stroke_coverage(start, end, height, width)
+    import torch
+
+    from .render import stroke_coverage as torch_strokes
+
+    return torch_strokes(torch.as_tensor(start), torch.as_tensor(end), height, width).numpy()

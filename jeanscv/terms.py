@@ -11,6 +11,8 @@ import functools
 
 import numpy as np
 
+from .errors import JeansError
+
 PAPER_TERMS = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
 TERM_NAMES = PAPER_TERMS + ("upright",)
 
@@ -30,6 +32,12 @@ STROKE_HALF_WIDTH = 2.5
 UPRIGHT_FREE_DEGREES = 20.0
 UPRIGHT_SATURATE_DEGREES = 60.0
 INTER_PAIRS = ("all", "non_adjacent")
+
+
+def check_inter_pairs(inter_pairs: str) -> None:
+    """Raise JeansError unless ``inter_pairs`` is one of :data:`INTER_PAIRS`."""
+    if inter_pairs not in INTER_PAIRS:
+        raise JeansError(f"unknown inter_pairs {inter_pairs!r} (use {' or '.join(INTER_PAIRS)})")
 
 
 def affine_residual_operator(template: np.ndarray) -> np.ndarray:
