@@ -353,3 +353,51 @@ def test_rim_fraction_counts_pixels_in_the_border_band():
     mask[8:12, 10:20] = True  # well inside
     assert rim_fraction(mask) == 0.0
     assert rim_fraction(np.zeros((20, 30), bool)) == 0.0
+
+
+def test_side_contact_is_the_largest_share_of_one_side():
+    """Top, left and right count, each as a share of its own length; the bottom not."""
+    from jeanscv.silhouette.consensus import side_contact
+
+    mask = np.zeros((10, 20), bool)
+    mask[0:5, 0] = True  # half the left side
+    mask[0, 0:4] = True  # a fifth of the top
+    assert side_contact(mask) == 0.5
+    mask[:] = False
+    mask[-1, 1:-1] = True  # standing on the bottom is no contact
+    assert side_contact(mask) == 0.0
+
+
+def test_horizon_band_spans_left_to_right_off_the_bottom():
+    from jeanscv.silhouette.consensus import spans_width
+
+    band = np.zeros((20, 40), bool)
+    band[5:9, :] = True  # a tree line across the frame
+    assert spans_width(band)
+    close_up = band.copy()
+    close_up[9:, 5:35] = True  # a subject as wide as the frame stands on the bottom
+    assert not spans_width(close_up)
+    band[:, 30:] = False  # it ends before the right side: touches only the left
+    assert not spans_width(band)
+
+
+def test_horizon_bands_are_out_of_the_running_unless_all_are_bands():
+    """Two hypotheses taking the same band outvote a third by consensus alone; as bands
+    they are left out, and the subject wins; with no subject found, a band still wins."""
+    from jeanscv.silhouette.consensus import choose
+
+    band = np.zeros((20, 40), bool)
+    band[5:9, :] = True
+    band_too = band.copy()
+    band_too[9, :] = True
+    subject = np.zeros((20, 40), bool)
+    subject[10:16, 15:25] = True
+    def one(_):
+        return 1.0
+
+    winner, ranked = choose({"a": band, "b": band_too, "subject": subject}, one, one)
+    assert winner == "subject"
+    assert [c.band for c in ranked] == [False, True, True]
+    assert ranked[0].consensus == 1.0 and ranked[1].score == 0.0
+    winner, ranked = choose({"a": band, "b": band_too}, one, one)
+    assert not any(c.band for c in ranked) and ranked[0].consensus == 0.8  # IoU of 4 rows with 5

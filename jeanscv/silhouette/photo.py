@@ -555,13 +555,16 @@ def _auto(rgb: np.ndarray, scene: _Scene, details: dict) -> tuple[np.ndarray, st
         raise JeansError("no object found to segment")
     details["candidates"] = {
         c.name: {"consensus": round(c.consensus, 4), "contrast": round(c.contrast, 4),
-                 "agreement": round(c.agreement, 4), "side_contact": round(c.side_contact, 4), "score": round(c.score, 4), "fraction": round(float(c.mask.mean()), 4)}
+                 "agreement": round(c.agreement, 4), "side_contact": round(c.side_contact, 4),
+                 "band": c.band, "score": round(c.score, 4), "fraction": round(float(c.mask.mean()), 4)}
         for c in ranked
     }
     details["chosen"] = winner
+    bands = [c.name for c in ranked if c.band]
     details["reason"] = (
-        f"{winner} agrees most with the other {len(ranked) - 1} hypotheses (mean IoU {best.consensus:.2f}) "
+        f"{winner} agrees most with the other {len(ranked) - len(bands) - 1} hypotheses (mean IoU {best.consensus:.2f}) "
         f"along strong colour edges (contrast {best.contrast:.2f}; border-colour agreement {best.agreement:.2f})"
+        + (f"; left out as horizon bands across the frame: {', '.join(bands)}" if bands else "")
     )
     if winner == "threshold":
         return threshold_mask, "threshold"
