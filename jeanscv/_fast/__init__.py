@@ -109,6 +109,8 @@ class Objective:
                 np.empty((size, size + 2)),
                 np.empty((size, size)), np.empty((size, size + 2)), np.empty((size, size + 2)),
                 np.empty((n, rows, 15)), np.empty((n, rows, 13)),
+                np.empty(size * size, np.int64), np.empty(size * size, np.int64), np.empty((size * size, n)),
+                np.empty((size * size, 2), np.bool_),
             )
         return self._scratch[key]
 

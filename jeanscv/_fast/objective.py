@@ -8,8 +8,11 @@ derivative 0 at 0), so the two agree to rounding. Term order is
 
 Stroke terms need, per canvas pixel, the alphas of every stroke touching it: each
 stroke's band cells set their edge's bit in a pixel-indexed mask (cleared again after
-the candidate), and where two or more bits are set the other strokes' alphas are read
-from their bands, so unions and pair overlaps cost O(band cells), not O(canvas).
+the candidate), and a pixel that gets a second bit joins a list of overlaps. Only
+there do strokes interact: the unions' excess and the pair overlaps are sums over
+that list (the other strokes' alphas read from their bands), and so are the
+gradient's corrections to the value a lone stroke's cell has. Everything costs
+O(band cells + overlaps), not O(canvas).
 """
 
 from __future__ import annotations
@@ -219,22 +222,10 @@ def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
 
 
 @njit(cache=True)
-def _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here):
-    """Every stroke's alpha at pixel ``(x, y)`` into ``here`` (0 where absent), read once
-    from the bands for the unions and the pairs; stroke ``e``'s own is ``alpha``."""
-    for k in range(here.shape[0]):
-        if k == e:
-            here[k] = alpha
-        elif (bits >> k) & 1:
-            here[k] = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
-        else:
-            here[k] = 0.0
-
-
-@njit(cache=True)
 def objective(
     vertices, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, need_grad,
-    terms, grad, mask, diff, wind, cell_grad, prefix, band_diff, band_wind,
+    terms, grad, mask, diff, wind, cell_grad, prefix, band_diff, band_wind, overlap_pixel, overlap_bits,
+    overlap_alpha, overlap_fits,
 ):
     """All eight terms of each candidate and the gradient of the weighted total.
 
@@ -249,8 +240,10 @@ def objective(
         mask: ``(C * C,)`` int64 scratch, all zero (left zero): the strokes at each pixel;
             diff, cell_grad, prefix: ``(C, C + 2)``; wind: ``(C, C)``; band_diff:
             ``(N, rows, 15)``, band_wind: ``(N, rows, 13)`` with rows >= any band's
-            (:func:`band_scratch_rows`): scratch reused across calls, so that no call
-            pays for fresh pages.
+            (:func:`band_scratch_rows`); overlap_pixel, overlap_bits: ``(C * C,)`` int64,
+            overlap_alpha: ``(C * C, N)``, overlap_fits: ``(C * C, 2)`` bool: the overlaps'
+            pixels, strokes, alphas and whether each union stays within 1 there:
+            scratch reused across calls, so that no call pays for fresh pages.
     """
     batch, n = vertices.shape[0], vertices.shape[1]
     size = s.shape[0]
@@ -277,7 +270,6 @@ def objective(
     crossings = 4 * (size + 4 * int(margin) + 16)
     ts, axes, lines = np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings)
     col0 = np.empty(max(size, rows_limit), np.int64)
-    band_grad = np.empty((rows_limit, BAND_COLUMNS + 1))
     band_prefix = np.empty((rows_limit, BAND_COLUMNS + 1))
     col_start = np.empty((n, rows_limit), np.int64)
     band_lo = np.empty((n, rows_limit), np.int64)
@@ -285,7 +277,6 @@ def objective(
     row_start = np.empty(n, np.int64)
     band_count = np.empty(n, np.int64)
     x_major = np.empty(n, np.bool_)
-    here = np.empty(n)  # the strokes' alphas at one pixel
     labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
     labels[0], labels[1] = is_open, is_closed
     outline = np.empty((OUTLINE_POINTS, 2))
@@ -331,13 +322,16 @@ def objective(
         terms[b, COVERAGE] = coverage
         terms[b, INSIDE] = inside
 
-        # strokes: bands, then pixel scratch
+        # strokes: bands, then pixel scratch; a pixel that a second stroke reaches joins
+        # the list of overlaps, the only pixels where the strokes interact
+        overlaps = 0
         for e in range(n):
             f = (e + 1) % n
             row_start[e], band_count[e], x_major[e], empty = stroke_band(
                 v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, rows_limit, cos_r, sin_r, outline,
                 col_start[e], band_diff[e], ts, axes, lines,
             )
+            bit = mask.dtype.type(1 << e)
             areas[e] = on_body[e] = 0.0
             for r in range(band_count[e]):
                 acc = 0.0
@@ -356,42 +350,41 @@ def objective(
                         p = y * size + x
                         areas[e] += alpha
                         on_body[e] += alpha * s[y, x]
-                        mask[p] |= mask.dtype.type(1 << e)
+                        old = mask[p]
+                        if old != 0 and old & (old - 1) == 0:
+                            overlap_pixel[overlaps] = p
+                            overlaps += 1
+                        mask[p] = old | bit
                 band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
 
         # unions of the open and the closed edges: excess where their strokes stack past 1
         union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
         overlap[:, :] = 0.0
         pair_excess[:, :] = 0.0
-        for e in range(n):
-            for r in range(band_count[e]):
-                for c in range(band_lo[e, r], band_hi[e, r]):
-                    alpha = min(abs(band_wind[e, r, c]), 1.0)
-                    if alpha == 0.0:
-                        continue
-                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
-                    p = y * size + x
-                    bits = mask[p]
-                    if bits & (bits - 1) == 0:
-                        continue  # one stroke only: no excess, no overlap
-                    if bits & ((1 << e) - 1):
-                        continue  # the pixel's lowest stroke counts it, once
-                    _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
-                    for u in range(2):
-                        stacked = 0.0
-                        for k in range(n):
-                            if labels[u, k]:
-                                stacked += here[k]
-                        if stacked > 1.0:
-                            union[u, 2] += stacked - 1.0
-                            union[u, 3] += (stacked - 1.0) * s[y, x]
-                    for i in range(e, n):
-                        if here[i] == 0.0:
-                            continue
-                        for k in range(i + 1, n):
-                            if pair[i, k] and here[k] != 0.0:
-                                overlap[i, k] += here[i] * here[k]
-                                pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
+        for q in range(overlaps):
+            p = overlap_pixel[q]
+            y, x = p // size, p % size
+            bits = mask[p]
+            overlap_bits[q] = bits
+            here = overlap_alpha[q]
+            for k in range(n):
+                here[k] = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y) if (bits >> k) & 1 else 0.0
+            for u in range(2):
+                stacked = 0.0
+                for k in range(n):
+                    if labels[u, k]:
+                        stacked += here[k]
+                overlap_fits[q, u] = stacked <= 1.0
+                if stacked > 1.0:
+                    union[u, 2] += stacked - 1.0
+                    union[u, 3] += (stacked - 1.0) * s[y, x]
+            for i in range(n):
+                if here[i] == 0.0:
+                    continue
+                for k in range(i + 1, n):
+                    if pair[i, k] and here[k] != 0.0:
+                        overlap[i, k] += here[i] * here[k]
+                        pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
         for e in range(n):
             for u in range(2):
                 if labels[u, e]:
@@ -412,81 +405,95 @@ def objective(
                     inter += overlap[e, k] / max(areas[e] + areas[k] - pair_excess[e, k], _EPS)
         terms[b, INTER] = inter
 
-        if need_grad and (weights[OPEN] != 0.0 or weights[CLOSED] != 0.0 or weights[INTER] != 0.0):
-            # d total / d alpha = per-edge constant + per-pixel parts
-            union_weight = np.array([-weights[OPEN], weights[CLOSED]])
-            union_d_den = np.empty(2)
-            for u in range(2):
-                raw = union[u, 1] - union[u, 2]
-                union_d_den[u] = -(union[u, 0] - union[u, 3]) / union_den[u] ** 2 if raw >= _EPS else 0.0
-            base = np.zeros(n)
-            pair_d_den = np.zeros((n, n))
-            pair_den = np.ones((n, n))
-            for e in range(n):
-                for k in range(e + 1, n):
-                    if pair[e, k]:
-                        raw = areas[e] + areas[k] - pair_excess[e, k]
-                        pair_den[e, k] = max(raw, _EPS)
-                        if raw >= _EPS:
-                            pair_d_den[e, k] = -weights[INTER] * overlap[e, k] / pair_den[e, k] ** 2
-                        base[e] += pair_d_den[e, k]
-                        base[k] += pair_d_den[e, k]
-            for e in range(n):
-                f = (e + 1) % n
-                # d total / d alpha at a pixel no other stroke touches: lone + lone_s * S
-                lone, lone_s = base[e], 0.0
-                for u in range(2):
-                    if labels[u, e] and union_weight[u] != 0.0:
-                        lone += union_weight[u] * union_d_den[u]
-                        lone_s += union_weight[u] / union_den[u]
-                for r in range(band_count[e]):
-                    band_grad[r, :] = 0.0
-                    for c in range(band_lo[e, r], band_hi[e, r]):
-                        w = band_wind[e, r, c]
-                        alpha = min(abs(w), 1.0)
-                        if alpha == 0.0 or abs(w) > 1.0:
-                            continue
-                        x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
-                        p = y * size + x
-                        bits = mask[p]
-                        if bits & (bits - 1) == 0:
-                            band_grad[r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
-                            continue
-                        g = base[e]
-                        _alphas_at(bits, e, alpha, x, y, band_wind, row_start, col_start, band_count, x_major, here)
-                        for u in range(2):
-                            if not labels[u, e] or union_weight[u] == 0.0:
-                                continue
-                            stacked = 0.0
-                            for k in range(n):
-                                if labels[u, k]:
-                                    stacked += here[k]
-                            if stacked <= 1.0:
-                                g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
-                        for k in range(n):
-                            if k == e or not (bits >> k) & 1:
-                                continue
-                            i, j = min(e, k), max(e, k)
-                            if not pair[i, j]:
-                                continue
-                            other = here[k]
-                            g += weights[INTER] * other / pair_den[i, j]
-                            if alpha + other - 1.0 >= 0.0:
-                                g -= pair_d_den[i, j]
-                        band_grad[r, c] = g if w > 0 else -g
-                gpx, gpy, gqx, gqy = stroke_band_backward(
-                    v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, row_start[e], band_count[e],
-                    cos_r, sin_r, outline, g_outline, col_start[e], band_grad, band_prefix, ts, axes, lines,
-                )
-                g_v[e, 0] += gpx
-                g_v[e, 1] += gpy
-                g_v[f, 0] += gqx
-                g_v[f, 1] += gqy
-
-        # leave the scratch clean for the next candidate
+        if not (need_grad and (weights[OPEN] != 0.0 or weights[CLOSED] != 0.0 or weights[INTER] != 0.0)):
+            _clear_mask(mask, size, n, row_start, col_start, band_count, band_lo, band_hi, x_major)
+            continue
+        # d total / d alpha = per-edge constant + per-pixel parts
+        union_weight = np.array([-weights[OPEN], weights[CLOSED]])
+        union_d_den = np.empty(2)
+        for u in range(2):
+            raw = union[u, 1] - union[u, 2]
+            union_d_den[u] = -(union[u, 0] - union[u, 3]) / union_den[u] ** 2 if raw >= _EPS else 0.0
+        base = np.zeros(n)
+        pair_d_den = np.zeros((n, n))
+        pair_den = np.ones((n, n))
         for e in range(n):
+            for k in range(e + 1, n):
+                if pair[e, k]:
+                    raw = areas[e] + areas[k] - pair_excess[e, k]
+                    pair_den[e, k] = max(raw, _EPS)
+                    if raw >= _EPS:
+                        pair_d_den[e, k] = -weights[INTER] * overlap[e, k] / pair_den[e, k] ** 2
+                    base[e] += pair_d_den[e, k]
+                    base[k] += pair_d_den[e, k]
+        # every cell as if its stroke were alone there (the band's difference buffer,
+        # spent, holds dL/dW), clearing the pixel mask on the way ...
+        for e in range(n):
+            # d total / d alpha at a pixel no other stroke touches: lone + lone_s * S
+            lone, lone_s = base[e], 0.0
+            for u in range(2):
+                if labels[u, e] and union_weight[u] != 0.0:
+                    lone += union_weight[u] * union_d_den[u]
+                    lone_s += union_weight[u] / union_den[u]
             for r in range(band_count[e]):
+                band_diff[e, r, :] = 0.0
                 for c in range(band_lo[e, r], band_hi[e, r]):
-                    if band_wind[e, r, c] != 0.0:
-                        x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
-                        mask[y * size + x] = 0
+                    w = band_wind[e, r, c]
+                    if w == 0.0:
+                        continue
+                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                    mask[y * size + x] = 0
+                    if abs(w) > 1.0:
+                        continue
+                    band_diff[e, r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
+        # ... then the overlaps' own values
+        for q in range(overlaps):
+            p = overlap_pixel[q]
+            y, x = p // size, p % size
+            bits = overlap_bits[q]
+            for e in range(n):
+                if not (bits >> e) & 1:
+                    continue
+                major, minor = (x, y) if x_major[e] else (y, x)
+                r = major - row_start[e]
+                c = minor - col_start[e, r]
+                w = band_wind[e, r, c]
+                if abs(w) > 1.0:
+                    continue
+                alpha = abs(w)
+                g = base[e]
+                for u in range(2):
+                    if labels[u, e] and union_weight[u] != 0.0 and overlap_fits[q, u]:
+                        g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
+                for k in range(n):
+                    if k == e or not (bits >> k) & 1:
+                        continue
+                    i, j = min(e, k), max(e, k)
+                    if not pair[i, j]:
+                        continue
+                    other = overlap_alpha[q, k]
+                    g += weights[INTER] * other / pair_den[i, j]
+                    if alpha + other - 1.0 >= 0.0:
+                        g -= pair_d_den[i, j]
+                band_diff[e, r, c] = g if w > 0 else -g
+        for e in range(n):
+            f = (e + 1) % n
+            gpx, gpy, gqx, gqy = stroke_band_backward(
+                v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, row_start[e], band_count[e],
+                cos_r, sin_r, outline, g_outline, col_start[e], band_diff[e], band_prefix, ts, axes, lines,
+            )
+            g_v[e, 0] += gpx
+            g_v[e, 1] += gpy
+            g_v[f, 0] += gqx
+            g_v[f, 1] += gqy
+
+
+@njit(cache=True)
+def _clear_mask(mask, size, n, row_start, col_start, band_count, band_lo, band_hi, x_major):
+    """Zero the pixel mask where the candidate's strokes set it."""
+    for e in range(n):
+        for r in range(band_count[e]):
+            for c in range(band_lo[e, r], band_hi[e, r]):
+                x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                if 0 <= x < size and 0 <= y < size:
+                    mask[y * size + x] = 0
