@@ -158,7 +158,8 @@ def scratch(size: int, half_width: float, n: int) -> tuple[np.ndarray, ...]:
             # The per-pixel bit mask of strokes, as narrow as the edges allow: it is
             # read at every stroke pixel, and a quarter of the bytes stays in cache.
             np.zeros(size * size, np.uint8 if n <= 8 else np.uint16 if n <= 16 else np.int64),
-            np.empty((size, size + 2)),
+            np.zeros((size, size + 2)),
+            np.zeros((size, size + 2), np.uint8), np.empty((size, size + 2), np.int64), np.zeros(size, np.int64),
             np.empty((size, size)), np.empty((size, size + 2)), np.empty((size, size + 2)),
             np.empty((n, rows, 15)), np.empty((n, rows, 13)),
             np.empty(size * size, np.int64), np.empty(size * size, np.int64), np.empty((size * size, n)),

@@ -97,12 +97,41 @@ def _whole(w: float) -> bool:
 
 
 @njit(cache=True)
-def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, wind, cell_grad, prefix, col0,
-                ts, axes, lines):
+def _sorted_cells(touched, listed, counts, r, cols):
+    """Row ``r``'s touched cells and cell 0, in order, into ``listed[r]``; returns how many."""
+    m = counts[r]
+    if not touched[r, 0]:
+        touched[r, 0] = 1
+        listed[r, m] = 0
+        m += 1
+    if m <= 32:
+        for i in range(1, m):  # insertion sort: a row holds a few pieces
+            key = listed[r, i]
+            j = i - 1
+            while j >= 0 and listed[r, j] > key:
+                listed[r, j + 1] = listed[r, j]
+                j -= 1
+            listed[r, j + 1] = key
+    else:  # a near-horizontal edge: read the row's marks in order
+        m = 0
+        for c in range(cols):
+            if touched[r, c]:
+                listed[r, m] = c
+                m += 1
+    counts[r] = m
+    return m
+
+
+@njit(cache=True)
+def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, touched, listed, counts, wind,
+                cell_grad, prefix, col0, ts, axes, lines):
     """``(coverage, inside)`` of one candidate; adds their weighted gradient to ``grad``.
 
     ``s_rows``: ``(C, C + 1)`` prefix sums of ``S`` along rows. Work is O(pieces + rows
-    of the bounding box): cells left without a piece in a run take the run's sums.
+    of the bounding box): the pieces list the cells they touch (``touched``, ``listed``,
+    ``counts``; :func:`raster.scatter_edge`), and the cells between two listed ones hold
+    the same winding: where it is 0 or 1 they take the run's sums, with no gradient.
+    ``diff``, ``touched`` and ``counts`` are all zero before and after.
     """
     size = s.shape[0]
     n = v.shape[0]
@@ -117,22 +146,22 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, w
     rows, cols = max(rows, 0), max(cols, 0)
     area = not_on_body = uncovered_in = s_window = 0.0
     if rows and cols:
-        diff[:rows, : cols + 2] = 0.0
         col0[:rows] = ox
+        cells = (touched, listed, counts)
         for i in range(n):
             j = (i + 1) % n
             scatter_edge(v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size),
-                         oy, col0, rows, cols, diff, ts, axes, lines)
+                         oy, col0, rows, cols, diff, ts, axes, lines, cells)
         for r in range(rows):
             y = oy + r
             s_window += s_rows[y, ox + cols] - s_rows[y, ox]
             acc = 0.0
-            c = 0
-            while c < cols:
+            m = _sorted_cells(touched, listed, counts, r, cols)
+            for i in range(m):
+                c = listed[r, i]
                 acc += diff[r, c]
-                end = c + 1
-                while end < cols and diff[r, end] == 0.0:
-                    end += 1
+                diff[r, c] = 0.0
+                end = listed[r, i + 1] if i + 1 < m else cols
                 f = min(abs(acc), 1.0)
                 last = end
                 if end - c > 1 and _whole(acc):
@@ -144,53 +173,57 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, w
                         not_on_body += f * run - run_s
                     else:
                         uncovered_in += run_s - f * run
-                    wind[r, c + 1] = math.nan  # no gradient: the backward pass skips the run
-                    diff[r, c + 1] = end  # (the difference buffer is spent: it keeps where the run ends)
                     last = c + 1
+                wind[r, c] = acc  # (the cells up to the next listed one hold the same)
                 for cell in range(c, last):
-                    wind[r, cell] = acc
                     sv = s[y, ox + cell]
                     area += f
                     if f > sv:
                         not_on_body += f - sv
                     else:
                         uncovered_in += sv - f
-                c = end
+            diff[r, cols] = diff[r, cols + 1] = 0.0  # pieces right of the window
     total = max(s_total, _EPS)
     uncovered = (s_total - s_window) + uncovered_in
     coverage = (0.5 - uncovered / total) ** 2
     area_den = max(area, _EPS)
     inside = not_on_body / area_den
     if not need_grad or not rows or not cols or (w_cov == 0.0 and w_inside == 0.0):
+        for r in range(rows if cols else 0):
+            for i in range(counts[r]):
+                touched[r, listed[r, i]] = 0
+            counts[r] = 0
         return coverage, inside
     d_uncovered = w_cov * -2.0 * (0.5 - uncovered / total) / total
     d_area = -w_inside * not_on_body / (area_den * area_den) if area >= _EPS else 0.0
     for r in range(rows):
+        # dL/dW and its prefix sums, written where pieces read them: the listed cells
         running = 0.0
-        c = 0
-        while c < cols:
+        m = counts[r]
+        for i in range(m):
+            c = listed[r, i]
+            touched[r, c] = 0
             w = wind[r, c]
-            if math.isnan(w):
-                end = int(diff[r, c])
-                prefix[r, c:end] = running
-                cell_grad[r, c:end] = 0.0
-                c = end
-                continue
+            end = listed[r, i + 1] if i + 1 < m else cols
             prefix[r, c] = running
             cell_grad[r, c] = 0.0
-            c += 1
             if w == 0.0 or abs(w) > 1.0:
                 continue
             f = abs(w)
-            sv = s[oy + r, ox + c - 1]
-            g = d_area
-            if sv - f >= 0.0:
-                g -= d_uncovered
-            if f - sv >= 0.0:
-                g += w_inside / area_den
-            g = g if w > 0 else -g
-            cell_grad[r, c - 1] = g
-            running += g
+            # a run after a fractional cell: each cell has a gradient (no piece reads it)
+            last = c + 1 if end - c > 1 and _whole(w) else end
+            for cell in range(c, last):
+                sv = s[oy + r, ox + cell]
+                g = d_area
+                if sv - f >= 0.0:
+                    g -= d_uncovered
+                if f - sv >= 0.0:
+                    g += w_inside / area_den
+                g = g if w > 0 else -g
+                if cell == c:
+                    cell_grad[r, c] = g
+                running += g
+        counts[r] = 0
         prefix[r, cols] = running
     g4 = np.zeros(4)
     for i in range(n):
@@ -228,7 +261,8 @@ def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
 @njit(cache=True)
 def objective(
     vertices, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, need_grad,
-    totals, terms, grad, mask, diff, wind, cell_grad, prefix, band_diff, band_wind, overlap_pixel, overlap_bits,
+    totals, terms, grad, mask, diff, touched, listed, counts, wind, cell_grad, prefix, band_diff, band_wind,
+    overlap_pixel, overlap_bits,
     overlap_alpha, overlap_fits, overlap_rows,
 ):
     """All eight terms of each candidate and the gradient of the weighted total.
@@ -243,7 +277,9 @@ def objective(
         totals: ``(B,)`` out, the weighted totals (:func:`weighted_totals`); terms: ``(B, 8)``
             out; grad: ``(B, N, 2)`` out, d(weighted total)/d vertices.
         mask: ``(C * C,)`` int64 scratch, all zero (left zero): the strokes at each pixel;
-            diff, cell_grad, prefix: ``(C, C + 2)``; wind: ``(C, C)``; band_diff:
+            diff (all zero, left zero), cell_grad, prefix: ``(C, C + 2)``; touched
+            (uint8, all zero, left zero), listed: ``(C, C + 2)``, counts ``(C,)`` (all zero,
+            left zero): the fill's cells touched by pieces; wind: ``(C, C)``; band_diff:
             ``(N, rows, 15)``, band_wind: ``(N, rows, 13)`` with rows >= any band's
             (:func:`band_scratch_rows`); overlap_pixel, overlap_bits: ``(C * C,)`` int64,
             overlap_alpha: ``(C * C, N)``, overlap_fits: ``(C * C, 2)`` bool: the overlaps'
@@ -324,7 +360,7 @@ def objective(
         terms[b, UPRIGHT] = _upright(v, waist, hems, free, saturated, weights[UPRIGHT], g_v, need_grad)
 
         coverage, inside = _fill_terms(v, s, s_rows, s_total, weights[COVERAGE], weights[INSIDE], g_v, need_grad,
-                                       diff, wind, cell_grad, prefix, col0, ts, axes, lines)
+                                       diff, touched, listed, counts, wind, cell_grad, prefix, col0, ts, axes, lines)
         terms[b, COVERAGE] = coverage
         terms[b, INSIDE] = inside
 
@@ -546,8 +582,8 @@ _adam_update = njit(cache=True)(adam_update)
 @njit(cache=True)
 def descend(
     params, exp_avg, exp_avg_sq, step_sizes, bias2, beta1, beta2, eps, s, s_rows, half_width, weights, waist, hems,
-    residual, is_open, is_closed, pair, cos_r, sin_r, totals, path, mask, diff, wind, cell_grad, prefix, band_diff,
-    band_wind, overlap_pixel, overlap_bits, overlap_alpha, overlap_fits, overlap_rows,
+    residual, is_open, is_closed, pair, cos_r, sin_r, totals, path, mask, diff, touched, listed, counts, wind, cell_grad,
+    prefix, band_diff, band_wind, overlap_pixel, overlap_bits, overlap_alpha, overlap_fits, overlap_rows,
 ):
     """The fit's Adam steps on one target in one call: a step crosses into Python once per
     stretch of steps on the same target instead of a dozen times (about 0.1 ms a step, a
@@ -570,7 +606,8 @@ def descend(
         pixels[:] = params * size
         objective(
             pixels, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, True,
-            totals[k], terms, grad, mask, diff, wind, cell_grad, prefix, band_diff, band_wind, overlap_pixel,
+            totals[k], terms, grad, mask, diff, touched, listed, counts, wind, cell_grad, prefix, band_diff, band_wind,
+            overlap_pixel,
             overlap_bits, overlap_alpha, overlap_fits, overlap_rows,
         )
         any_finite = False
