@@ -319,6 +319,7 @@ def objective(
     row_start = np.empty(n, np.int64)
     band_count = np.empty(n, np.int64)
     x_major = np.empty(n, np.bool_)
+    present = np.empty(n, np.int64)  # the strokes at one pixel
     labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
     labels[0], labels[1] = is_open, is_closed
     outline = np.empty((OUTLINE_POINTS, 2))
@@ -374,31 +375,34 @@ def objective(
             )
             bit = mask.dtype.type(1 << e)
             areas[e] = on_body[e] = 0.0
+            along_x = x_major[e]
             for r in range(band_count[e]):
                 acc = 0.0
                 lo, hi = BAND_COLUMNS, 0
+                major, start = row_start[e] + r, col_start[e, r]
+                # the row's cells on the canvas; the others hold 0
+                first = max(-start, 0) if 0 <= major < size else BAND_COLUMNS
+                stop = min(size - start, BAND_COLUMNS)
                 for c in range(BAND_COLUMNS):
                     acc += band_diff[e, r, c]
-                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
-                    if x < 0 or x >= size or y < 0 or y >= size:
-                        acc_here = 0.0
-                    else:
-                        acc_here = acc
-                    band_wind[e, r, c] = acc_here
-                    alpha = min(abs(acc_here), 1.0)
-                    if alpha > 0.0:
-                        lo, hi = min(lo, c), c + 1
-                        p = y * size + x
-                        areas[e] += alpha
-                        on_body[e] += alpha * s[y, x]
-                        old = mask[p]
-                        if old != 0 and old & (old - 1) == 0:
-                            # a new overlap: its row in the band of its lowest stroke
-                            lowest = 0
-                            while not (old >> lowest) & 1:
-                                lowest += 1
-                            overlap_rows[lowest, (x if x_major[lowest] else y) - row_start[lowest]] = True
-                        mask[p] = old | bit
+                    if c < first or c >= stop or acc == 0.0:
+                        band_wind[e, r, c] = 0.0
+                        continue
+                    band_wind[e, r, c] = acc
+                    alpha = min(abs(acc), 1.0)
+                    x, y = (major, start + c) if along_x else (start + c, major)
+                    lo, hi = min(lo, c), c + 1
+                    p = y * size + x
+                    areas[e] += alpha
+                    on_body[e] += alpha * s[y, x]
+                    old = mask[p]
+                    if old != 0 and old & (old - 1) == 0:
+                        # a new overlap: its row in the band of its lowest stroke
+                        lowest = 0
+                        while not (old >> lowest) & 1:
+                            lowest += 1
+                        overlap_rows[lowest, (x if x_major[lowest] else y) - row_start[lowest]] = True
+                    mask[p] = old | bit
                 band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
 
         # unions of the open and the closed edges: excess where their strokes stack past 1
@@ -426,21 +430,28 @@ def objective(
                     overlap_pixel[q] = p
                     overlap_bits[q] = bits
                     here = overlap_alpha[q]
+                    # the strokes present, in order (sums over them skip only zeros)
+                    count = 0
                     for k in range(n):
+                        if (bits >> k) & 1:
+                            present[count] = k
+                            count += 1
                         here[k] = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y) if (bits >> k) & 1 else 0.0
                     for u in range(2):
                         stacked = 0.0
-                        for k in range(n):
-                            if labels[u, k]:
-                                stacked += here[k]
+                        for a in range(count):
+                            if labels[u, present[a]]:
+                                stacked += here[present[a]]
                         overlap_fits[q, u] = stacked <= 1.0
                         if stacked > 1.0:
                             union[u, 2] += stacked - 1.0
                             union[u, 3] += (stacked - 1.0) * s[y, x]
-                    for i in range(e, n):
+                    for a in range(count):
+                        i = present[a]
                         if here[i] == 0.0:
                             continue
-                        for k in range(i + 1, n):
+                        for b2 in range(a + 1, count):
+                            k = present[b2]
                             if pair[i, k] and here[k] != 0.0:
                                 overlap[i, k] += here[i] * here[k]
                                 pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
