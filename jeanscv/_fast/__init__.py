@@ -211,8 +211,12 @@ def warm_up() -> None:
     def load() -> None:
         from ..garments import JEANS
 
+        from ..fitter import BatchAdam
+
         square = JEANS.template / 16.0
-        Objective(JEANS, "all", {"coverage": 1.0})(square[None], np.ones((16, 16)), 0.25)
+        kernel = Objective(JEANS, "all", {"coverage": 1.0})
+        kernel(square[None], np.ones((16, 16)), 0.25)
+        kernel.descend(BatchAdam(square[None] / 16.0, 0.01), np.ones((16, 16)), 1, 0.25)
         polygon_coverage(square, 16, 16)
         stroke_coverage(square[:1], square[1:2], 16, 16)
 
