@@ -176,6 +176,29 @@ def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, 
     np.testing.assert_array_equal(fused.vertices, stepped.vertices)
 
 
+def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_starts():
+    import functools
+
+    from jeanscv.fitter import BatchAdam
+    from jeanscv.objectives import descend_by_steps, make_objective
+
+    silhouette = silhouette_zoo(["dog"])["dog"].astype(np.float64)
+    kernel = _fast.Objective(JEANS, "all", _weights("paper"))
+    everything_lost = BatchAdam(np.full((2, 8, 2), np.nan), 0.01)
+    totals, path = kernel.descend(everything_lost, silhouette, 5, 2.5)
+    assert totals.shape == (0, 2) and path.shape == (0, 2, 8, 2) and everything_lost.steps == 0
+
+    one_lost = np.stack([JEANS.template, JEANS.template]) / 256
+    one_lost[0, 3] = np.nan
+    fused, stepped = BatchAdam(one_lost, 0.01), BatchAdam(one_lost, 0.01)
+    totals, path = kernel.descend(fused, silhouette, 5, 2.5)
+    evaluate = make_objective("fast", JEANS, "all", _weights("paper"))
+    reference = functools.partial(descend_by_steps, evaluate)(stepped, silhouette, 5, 2.5)
+    assert np.isnan(totals[:, 0]).all() and np.isfinite(totals[:, 1]).all() and fused.steps == 5
+    np.testing.assert_array_equal(totals, reference[0])
+    np.testing.assert_array_equal(path, reference[1])
+
+
 def _fresh(code: str) -> str:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env.pop("JEANSCV_BACKEND", None)
