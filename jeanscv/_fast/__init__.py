@@ -209,9 +209,8 @@ def warm_up() -> None:
         return
 
     def load() -> None:
-        from ..garments import JEANS
-
         from ..fitter import BatchAdam
+        from ..garments import JEANS
 
         square = JEANS.template / 16.0
         kernel = Objective(JEANS, "all", {"coverage": 1.0})
