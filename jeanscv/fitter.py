@@ -12,7 +12,7 @@ import numpy as np
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .objectives import make_objective
+from .objectives import make_descent, make_objective
 from .presets import Preset, get_preset
 from .terms import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES
 
@@ -192,6 +192,18 @@ def as_silhouette_array(silhouette) -> np.ndarray:
     return s
 
 
+def adam_update(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_size, bias2, eps) -> None:
+    """One Adam update of ``params`` and its moments in place, in torch.optim.Adam's order
+    of operations; ``step_size = lr / (1 - beta1^t)``, ``bias2 = 1 - beta2^t``. Plain array
+    code: the fast backend's step loop compiles this same source with numba."""
+    exp_avg *= beta1
+    exp_avg += (1 - beta1) * grad
+    exp_avg_sq *= beta2
+    exp_avg_sq += (1 - beta2) * grad * grad
+    denom = np.sqrt(exp_avg_sq / bias2) + eps
+    params -= step_size * (exp_avg / denom)
+
+
 class BatchAdam:
     """Adam (Kingma & Ba; torch.optim.Adam's defaults and update) over a batch of starts,
     in numpy: the fit's parameters are a few hundred numbers, and torch.optim would
@@ -204,17 +216,17 @@ class BatchAdam:
         self.exp_avg_sq = np.zeros_like(self.params)
         self.steps = 0
 
-    def step(self, grad: np.ndarray) -> None:
-        """One Adam update of ``params`` in place (torch's order of operations)."""
+    def corrections(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(step_size, bias2)`` of the next ``steps`` steps (:func:`adam_update`)."""
         beta1, beta2 = self.betas
+        counts = range(self.steps + 1, self.steps + steps + 1)
+        return np.array([self.lr / (1 - beta1**t) for t in counts]), np.array([1 - beta2**t for t in counts])
+
+    def step(self, grad: np.ndarray) -> None:
+        """One Adam update of ``params`` in place."""
+        step_size, bias2 = self.corrections(1)
         self.steps += 1
-        self.exp_avg *= beta1
-        self.exp_avg += (1 - beta1) * grad
-        self.exp_avg_sq *= beta2
-        self.exp_avg_sq += (1 - beta2) * grad * grad
-        step_size = self.lr / (1 - beta1**self.steps)
-        denom = np.sqrt(self.exp_avg_sq / (1 - beta2**self.steps)) + self.eps
-        self.params -= step_size * (self.exp_avg / denom)
+        adam_update(self.params, grad, self.exp_avg, self.exp_avg_sq, *self.betas, step_size[0], bias2[0], self.eps)
 
     def keep(self, index: np.ndarray) -> None:
         """Shrink the batch to the starts in ``index``, moments included."""
@@ -361,41 +373,49 @@ def _fit(
     prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
 
     evaluate = make_objective(backend, garment, preset.inter_pairs, preset.weights, device)
+    descend = make_descent(backend, garment, preset.inter_pairs, preset.weights, device)
+
+    def half_width(target: np.ndarray) -> float:
+        return STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
 
     def objective(pixels: np.ndarray, target: np.ndarray, need_grad: bool = True):
-        half_width = STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
-        return evaluate(pixels, target, half_width, need_grad)
+        return evaluate(pixels, target, half_width(target), need_grad)
 
     screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
     sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
-    target_cache: dict[tuple[float, int], np.ndarray] = {}
-    for step, sigma in enumerate(sigma_per_iteration):
+
+    def target_key(step: int) -> tuple[float, int]:
         # Screening runs on a coarser canvas: which starts are promising shows there
         # at a fraction of the cost, and the normalised vertices carry over as they are.
-        factor = screen_factor if step <= prune_step else 1
-        if (sigma, factor) not in target_cache:
-            target_cache[sigma, factor] = _area_downsampled(_blurred(s, sigma), factor)
-        target = target_cache[sigma, factor]
-        size = target.shape[-1]
-        total, grad, _ = objective(optimizer.params * size, target)
-        finite = np.isfinite(total)
-        if not finite.any():
+        return sigma_per_iteration[step], screen_factor if step <= prune_step else 1
+
+    target_cache: dict[tuple[float, int], np.ndarray] = {}
+    step = 0
+    while step < iterations:
+        # A stretch of steps on one target, up to a pruning, goes to the backend at once.
+        key = target_key(step)
+        stop = step + 1
+        while stop < iterations and stop - 1 not in prunings and target_key(stop) == key:
+            stop += 1
+        if key not in target_cache:
+            sigma, factor = key
+            target_cache[key] = _area_downsampled(_blurred(s, sigma), factor)
+        target = target_cache[key]
+        totals, params = descend(optimizer, target, stop - step, half_width(target))
+        if len(totals) < stop - step:
             raise JeansError("the fit diverged (non-finite loss)")
-        # Diverged starts must not poison the others: drop their gradient.
-        grad = np.where(finite[:, None, None], grad * size, 0.0)
-        if not np.isfinite(grad).all():
-            grad = np.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0)
-        optimizer.step(grad)
-        history[step, active] = total
-        path[step + 1, active] = optimizer.params * CANVAS_SIZE
-        if step in prunings:
+        history[step:stop, active] = totals
+        path[step + 1 : stop + 1, active] = params * CANVAS_SIZE
+        step = stop
+        if step - 1 in prunings:
             # Successive halving: keep optimising only the most promising starts.
+            pruned = step - 1
             if preset.upright:
-                tilts = [tilt_degrees(v, garment) for v in path[step + 1, active]]
-                order = _upright_survivors(history[step, active], tilts, preset.upright.max_tilt, *prunings[step])
+                tilts = [tilt_degrees(v, garment) for v in path[step, active]]
+                order = _upright_survivors(history[pruned, active], tilts, preset.upright.max_tilt, *prunings[pruned])
             else:
-                postures = [posture(v, garment) for v in path[step + 1, active]]
-                order = _survivors(history[step, active], postures, preset)
+                postures = [posture(v, garment) for v in path[step, active]]
+                order = _survivors(history[pruned, active], postures, preset)
             optimizer.keep(order)
             active = active[order]
 

@@ -10,6 +10,7 @@ both work in float64 and agree to rounding, so a fit takes the same path either 
 
 from __future__ import annotations
 
+import functools
 from typing import Callable
 
 import numpy as np
@@ -20,6 +21,10 @@ from .terms import TERM_NAMES, check_inter_pairs
 #: ``(pixels (B, N, 2), target (C, C), stroke half width, need_grad)`` ->
 #: ``(totals (B,), d totals / d pixels (B, N, 2) or None, {term: (B,)})``.
 ObjectiveFunction = Callable[[np.ndarray, np.ndarray, float, bool], tuple[np.ndarray, np.ndarray | None, dict]]
+#: ``(optimizer (fitter.BatchAdam), target (C, C), steps, stroke half width)`` -> ``(totals
+#: (k, B), normalised params after each step (k, B, N, 2))``; ``k < steps``: at step ``k``
+#: every start diverged.
+DescentFunction = Callable[[object, np.ndarray, int, float], tuple[np.ndarray, np.ndarray]]
 
 
 def make_objective(
@@ -38,6 +43,43 @@ def make_objective(
 
         return fast
     return _torch_objective(garment, inter_pairs, weights, device)
+
+
+def make_descent(
+    backend: str, garment: Garment, inter_pairs: str, weights: dict[str, float], device: str = "cpu"
+) -> DescentFunction:
+    """The fit's Adam steps on one target: for ``fast`` one numba call runs them all
+    (:meth:`jeanscv._fast.Objective.descend`), else a Python loop over the objective
+    does the same step by step."""
+    if backend == "fast":
+        check_inter_pairs(inter_pairs)
+        from ._fast import Objective
+
+        return Objective(garment, inter_pairs, weights).descend
+    return functools.partial(descend_by_steps, make_objective(backend, garment, inter_pairs, weights, device))
+
+
+def descend_by_steps(
+    evaluate: ObjectiveFunction, optimizer, target: np.ndarray, steps: int, half_width: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:data:`DescentFunction` as a Python loop: ``evaluate`` at the optimizer's params,
+    then its Adam step, ``steps`` times."""
+    size = target.shape[-1]
+    totals, path = [], []
+    for _ in range(steps):
+        total, grad, _ = evaluate(optimizer.params * size, target, half_width)
+        finite = np.isfinite(total)
+        if not finite.any():
+            break
+        # Diverged starts must not poison the others: drop their gradient.
+        grad = np.where(finite[:, None, None], grad * size, 0.0)
+        if not np.isfinite(grad).all():
+            grad = np.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0)
+        optimizer.step(grad)
+        totals.append(total)
+        path.append(optimizer.params.copy())
+    shape = optimizer.params.shape
+    return np.reshape(totals, (len(totals), shape[0])), np.reshape(path, (len(path), *shape))
 
 
 def _torch_objective(garment: Garment, inter_pairs: str, weights: dict[str, float], device: str) -> ObjectiveFunction:

@@ -261,7 +261,9 @@ def test_max_pixels_option(tmp_path, run_cli):
 def test_diverged_fit_is_one_line(tmp_path, run_cli, monkeypatch, iterations):
     """A non-finite loss for every start fails the file: during the steps (3 iterations)
     or at the final scoring (0 iterations)."""
-    from jeanscv import fitter
+    import functools
+
+    from jeanscv import fitter, objectives
 
     real_objective = fitter.make_objective
 
@@ -274,7 +276,12 @@ def test_diverged_fit_is_one_line(tmp_path, run_cli, monkeypatch, iterations):
 
         return diverged
 
+    def nan_descent(*args, **kwargs):
+        # the steps taken one by one, so that the objective above is the one they take
+        return functools.partial(objectives.descend_by_steps, nan_objective(*args, **kwargs))
+
     monkeypatch.setattr(fitter, "make_objective", nan_objective)
+    monkeypatch.setattr(fitter, "make_descent", nan_descent)
     src = write_silhouette_png(tmp_path / "a.png")
     result = run_cli(src, "--iterations", iterations, "--starts", "2", "-q")
     assert result.exit_code == 1

@@ -151,6 +151,54 @@ def test_whole_fits_take_the_same_path(preset, names, chaotic):
         assert fast.extra["backend"] == "fast" and reference.extra["backend"] == "torch"
 
 
+@pytest.mark.parametrize("preset", ["default", "paper"])
+def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, preset):
+    """The fast fit's Adam steps run inside numba (objective.descend); taken one by one in
+    Python (objectives.descend_by_steps, the torch path's loop) on the same objective they
+    give the same bits: the same histories, prunings and vertices."""
+    import functools
+
+    from jeanscv import fitter, objectives
+
+    silhouette = silhouette_zoo(["kangaroo"])["kangaroo"]
+    fused = fit(silhouette, preset, iterations=40)
+
+    def one_by_one(backend, garment, inter_pairs, weights, device="cpu"):
+        evaluate = objectives.make_objective(backend, garment, inter_pairs, weights, device)
+        return functools.partial(objectives.descend_by_steps, evaluate)
+
+    monkeypatch.setattr(fitter, "make_descent", one_by_one)
+    stepped = fit(silhouette, preset, iterations=40)
+    assert fused.extra["backend"] == stepped.extra["backend"] == "fast"
+    assert fused.start_ids == stepped.start_ids and len(fused.start_ids) < fused.num_starts  # pruned
+    np.testing.assert_array_equal(fused.history, stepped.history)
+    np.testing.assert_array_equal(fused.trajectory, stepped.trajectory)
+    np.testing.assert_array_equal(fused.vertices, stepped.vertices)
+
+
+def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_starts():
+    import functools
+
+    from jeanscv.fitter import BatchAdam
+    from jeanscv.objectives import descend_by_steps, make_objective
+
+    silhouette = silhouette_zoo(["dog"])["dog"].astype(np.float64)
+    kernel = _fast.Objective(JEANS, "all", _weights("paper"))
+    everything_lost = BatchAdam(np.full((2, 8, 2), np.nan), 0.01)
+    totals, path = kernel.descend(everything_lost, silhouette, 5, 2.5)
+    assert totals.shape == (0, 2) and path.shape == (0, 2, 8, 2) and everything_lost.steps == 0
+
+    one_lost = np.stack([JEANS.template, JEANS.template]) / 256
+    one_lost[0, 3] = np.nan
+    fused, stepped = BatchAdam(one_lost, 0.01), BatchAdam(one_lost, 0.01)
+    totals, path = kernel.descend(fused, silhouette, 5, 2.5)
+    evaluate = make_objective("fast", JEANS, "all", _weights("paper"))
+    reference = functools.partial(descend_by_steps, evaluate)(stepped, silhouette, 5, 2.5)
+    assert np.isnan(totals[:, 0]).all() and np.isfinite(totals[:, 1]).all() and fused.steps == 5
+    np.testing.assert_array_equal(totals, reference[0])
+    np.testing.assert_array_equal(path, reference[1])
+
+
 def _fresh(code: str) -> str:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env.pop("JEANSCV_BACKEND", None)
@@ -163,14 +211,17 @@ def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
     code = """
         import numpy as np
         from jeanscv import _fast
-        from jeanscv._fast.objective import objective
+        from jeanscv._fast.objective import descend, objective
+        from jeanscv.fitter import BatchAdam
         from jeanscv.garments import JEANS
-        _fast.Objective(JEANS, "all", {"coverage": 1.0})(JEANS.template[None], np.ones((256, 256)))
-        print(sum(objective.stats.cache_hits.values()), sum(objective.stats.cache_misses.values()))
+        kernel = _fast.Objective(JEANS, "all", {"coverage": 1.0})
+        kernel(JEANS.template[None], np.ones((256, 256)))
+        kernel.descend(BatchAdam(JEANS.template[None] / 256, 0.01), np.ones((256, 256)), 2, 2.5)
+        print(*(sum(getattr(f.stats, k).values()) for f in (objective, descend) for k in ("cache_hits", "cache_misses")))
     """
     _fresh(code)  # fills the cache if nothing else has
-    hits, misses = _fresh(code).split()
-    assert int(hits) >= 1 and misses == "0"
+    objective_hits, objective_misses, descend_hits, descend_misses = map(int, _fresh(code).split())
+    assert objective_hits >= 1 and descend_hits >= 1 and objective_misses == descend_misses == 0
 
 
 def test_a_cpu_photo_run_never_imports_torch(tmp_path):

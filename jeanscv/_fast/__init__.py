@@ -80,7 +80,6 @@ class Objective:
         self.pair = np.zeros((n, n), np.bool_)
         for i, j in garment.edge_pairs(adjacent=inter_pairs == "all"):
             self.pair[min(i, j), max(i, j)] = True
-        self._scratch: dict[tuple[int, float], tuple[np.ndarray, ...]] = {}
         self._row_sums: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def row_sums(self, silhouette: np.ndarray) -> np.ndarray:
@@ -95,22 +94,14 @@ class Objective:
             kept = self._row_sums[key] = (silhouette, sums)
         return kept[1]
 
-    def scratch(self, size: int, half_width: float, n: int) -> tuple[np.ndarray, ...]:
-        """Work arrays of the kernel for a ``size`` canvas, made once and reused."""
-        from .objective import band_scratch_rows
-
-        key = (size, half_width)
-        if key not in self._scratch:
-            rows = band_scratch_rows(size, half_width)
-            self._scratch[key] = (
-                # The per-pixel bit mask of strokes, as narrow as the edges allow: it is
-                # read at every stroke pixel, and a quarter of the bytes stays in cache.
-                np.zeros(size * size, np.uint8 if n <= 8 else np.uint16 if n <= 16 else np.int64),
-                np.empty((size, size + 2)),
-                np.empty((size, size)), np.empty((size, size + 2)), np.empty((size, size + 2)),
-                np.empty((n, rows, 15)), np.empty((n, rows, 13)),
-            )
-        return self._scratch[key]
+    def _arguments(self, silhouette: np.ndarray, half_width: float) -> tuple:
+        """The kernel's arguments that describe the target and the objective, from
+        ``silhouette`` to the capsule cap offsets (:func:`objective.objective`)."""
+        cos_r, sin_r = cap_offsets(half_width)
+        return (
+            silhouette, self.row_sums(silhouette), half_width, self.weights, self.waist, self.hems, self.residual,
+            self.is_open, self.is_closed, self.pair, cos_r, sin_r,
+        )
 
     def __call__(
         self, vertices: np.ndarray, silhouette: np.ndarray, half_width: float = STROKE_HALF_WIDTH, need_grad: bool = True
@@ -124,19 +115,57 @@ class Objective:
 
         vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         silhouette = np.ascontiguousarray(silhouette, dtype=np.float64)
-        size = silhouette.shape[0]
-        n = vertices.shape[1]
+        totals = np.empty(vertices.shape[0])
         terms = np.empty((vertices.shape[0], len(TERM_NAMES)))
         grad = np.empty(vertices.shape)
-        cos_r, sin_r = cap_offsets(float(half_width))
-        objective(
-            vertices, silhouette, self.row_sums(silhouette), float(half_width), self.weights, self.waist, self.hems, self.residual,
-            self.is_open, self.is_closed, self.pair, cos_r, sin_r, need_grad, terms, grad,
-            *self.scratch(size, float(half_width), n),
-        )
-        used = self.weights != 0.0
-        totals = (terms[:, used] * self.weights[used]).sum(axis=1)
+        objective(vertices, *self._arguments(silhouette, float(half_width)), need_grad, totals, terms, grad,
+                  *scratch(silhouette.shape[0], float(half_width), vertices.shape[1]))
         return totals, grad, terms
+
+    def descend(self, optimizer, target: np.ndarray, steps: int, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+        """``steps`` Adam steps of ``optimizer`` (:class:`jeanscv.fitter.BatchAdam`) on
+        ``target`` in one kernel call (:func:`objective.descend`): ``(totals (k, B), params
+        after each step (k, B, N, 2))``; ``k < steps``: at step ``k`` every start diverged."""
+        from .objective import descend
+
+        target = np.ascontiguousarray(target, dtype=np.float64)
+        step_sizes, bias2 = optimizer.corrections(steps)
+        batch, n = optimizer.params.shape[:2]
+        totals = np.empty((steps, batch))
+        path = np.empty((steps, batch, n, 2))
+        beta1, beta2 = optimizer.betas
+        done = descend(
+            optimizer.params, optimizer.exp_avg, optimizer.exp_avg_sq, step_sizes, bias2, beta1, beta2, optimizer.eps,
+            *self._arguments(target, float(half_width)), totals, path, *scratch(target.shape[0], float(half_width), n),
+        )
+        optimizer.steps += done
+        return totals[:done], path[:done]
+
+
+_scratch: dict[tuple[int, float, int], tuple[np.ndarray, ...]] = {}
+
+
+def scratch(size: int, half_width: float, n: int) -> tuple[np.ndarray, ...]:
+    """Work arrays of the kernel for a ``size`` canvas and ``n`` edges, made once per
+    process and shared by every objective (the kernels hold the GIL, so no two calls
+    use them at once; each leaves them as the next expects)."""
+    from .objective import band_scratch_rows
+
+    key = (size, half_width, n)
+    if key not in _scratch:
+        rows = band_scratch_rows(size, half_width)
+        _scratch[key] = (
+            # The per-pixel bit mask of strokes, as narrow as the edges allow: it is
+            # read at every stroke pixel, and a quarter of the bytes stays in cache.
+            np.zeros(size * size, np.uint8 if n <= 8 else np.uint16 if n <= 16 else np.int64),
+            np.zeros((size, size + 2)),
+            np.zeros((size, size + 2), np.uint8), np.empty((size, size + 2), np.int64), np.zeros(size, np.int64),
+            np.empty((size, size)), np.empty((size, size + 2)), np.empty((size, size + 2)),
+            np.empty((n, rows, 15)), np.empty((n, rows, 13)),
+            np.empty(size * size, np.int64), np.empty(size * size, np.int64), np.empty((size * size, n)),
+            np.empty((size * size, 2), np.bool_), np.zeros((n, rows), np.bool_),
+        )
+    return _scratch[key]
 
 
 def polygon_coverage(vertices: np.ndarray, height: int, width: int, top: int = 0, rows: int | None = None,
@@ -180,10 +209,13 @@ def warm_up() -> None:
         return
 
     def load() -> None:
+        from ..fitter import BatchAdam
         from ..garments import JEANS
 
         square = JEANS.template / 16.0
-        Objective(JEANS, "all", {"coverage": 1.0})(square[None], np.ones((16, 16)), 0.25)
+        kernel = Objective(JEANS, "all", {"coverage": 1.0})
+        kernel(square[None], np.ones((16, 16)), 0.25)
+        kernel.descend(BatchAdam(square[None] / 16.0, 0.01), np.ones((16, 16)), 1, 0.25)
         polygon_coverage(square, 16, 16)
         stroke_coverage(square[:1], square[1:2], 16, 16)
 

@@ -126,8 +126,22 @@ def _piece(ax, ay, dx, dy, ta, tb, row0, col0, nrows, width):
 
 
 @njit(cache=True)
-def scatter_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, diff, ts, axes, lines):
-    """Accumulate one edge's pieces into a difference buffer ``diff`` ``(rows, width + 2)``."""
+def _list_cell(touched, listed, counts, r, c):
+    """Add cell ``(r, c)`` to row ``r``'s list of touched cells, once."""
+    if not touched[r, c]:
+        touched[r, c] = 1
+        listed[r, counts[r]] = c
+        counts[r] += 1
+
+
+@njit(cache=True)
+def scatter_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, diff, ts, axes, lines, cells):
+    """Accumulate one edge's pieces into a difference buffer ``diff`` ``(rows, width + 2)``.
+
+    ``cells``: None, or ``(touched (rows, width + 2) uint8, listed (rows, width + 2),
+    counts (rows,))`` to which the cells of the row that it changes (left of ``width``)
+    are added, unsorted (:func:`_list_cell`).
+    """
     count = cut_edge(ax, ay, bx, by, lox, hix, loy, hiy, ts, axes, lines)
     dx, dy = bx - ax, by - ay
     for k in range(count - 1):
@@ -138,6 +152,12 @@ def scatter_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, d
         diff[r, 0] += w
         diff[r, c] += inside_area - w
         diff[r, c + 1] -= inside_area
+        if cells is not None:
+            _list_cell(cells[0], cells[1], cells[2], r, 0)
+            if c < width:
+                _list_cell(cells[0], cells[1], cells[2], r, c)
+            if c + 1 < width:
+                _list_cell(cells[0], cells[1], cells[2], r, c + 1)
 
 
 @njit(cache=True)
@@ -189,7 +209,7 @@ def polygon_winding(vertices, height, width, row0, nrows, diff, ts, axes, lines)
         j = (i + 1) % n
         scatter_edge(
             vertices[i, 0], vertices[i, 1], vertices[j, 0], vertices[j, 1],
-            0.0, float(width), 0.0, float(height), row0, col0, nrows, width, diff, ts, axes, lines,
+            0.0, float(width), 0.0, float(height), row0, col0, nrows, width, diff, ts, axes, lines, None,
         )
 
 
@@ -388,7 +408,7 @@ def stroke_band(px, py, qx, qy, half_width, low, high, rows_limit, cos_r, sin_r,
         m = (k + 1) % OUTLINE_POINTS
         scatter_edge(
             outline[k, 0], outline[k, 1], outline[m, 0], outline[m, 1],
-            -inf, inf, -inf, inf, row_start, col_start, rows, BAND_COLUMNS, diff, ts, axes, lines,
+            -inf, inf, -inf, inf, row_start, col_start, rows, BAND_COLUMNS, diff, ts, axes, lines, None,
         )
     return row_start, rows, x_major, False
 
