@@ -450,7 +450,10 @@ def _grabcut_coarse_best(scene: _Scene, rect_work=None, hypothesis: bool = False
     """GrabCut variants at coarse resolution: ``(chosen variant, its mask, variant
     scores)``. With ``rect_work`` (x, y, w, h, working pixels) only the rect variant
     runs, else "colour" and, unless colour scored at least ``_CONFIDENT_SCORE``,
-    "texture". ``hypothesis``: cut on the scene's small copy (see :func:`_grabcut_coarse`)."""
+    "texture". ``hypothesis``: cut on the scene's small copy (see :func:`_grabcut_coarse`),
+    and the texture variant only where colour found nothing or the scene is scored at
+    its texture scale: elsewhere it never won (18 real and 96 synthetic photos give the
+    same masks without it) and cost up to 0.7 s on a real photo."""
     if rect_work is not None:
         x, y, w, h = (v / scene.factor for v in rect_work)
         rect = (int(np.floor(x)), int(np.floor(y)), max(2, int(np.ceil(w))), max(2, int(np.ceil(h))))
@@ -459,7 +462,9 @@ def _grabcut_coarse_best(scene: _Scene, rect_work=None, hypothesis: bool = False
         jobs = {"colour": {}, "texture": {}}
     variants = {}
     for variant, kwargs in jobs.items():
-        if variant == "texture" and "colour" in variants and variants["colour"][1]["score"] >= _CONFIDENT_SCORE:
+        if variant == "texture" and "colour" in variants and (
+            variants["colour"][1]["score"] >= _CONFIDENT_SCORE or (hypothesis and scene.scale == "fine")
+        ):
             continue
         try:
             mask = _grabcut_coarse(scene, variant, hypothesis=hypothesis, **kwargs)
