@@ -25,11 +25,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .masks import border_ring
+from .masks import border_ring, shape_for
 from .saliency import SuperpixelGraph, focus, saliency_map
 
 _SUPERPIXEL_SIZE = 12  # SLIC region size, pixels (about 300 superpixels at 240x180)
 _RECT_INSET = 0.1  # the centred rectangle leaves this share of each side to the background
+# The centred rectangle is cut on a copy of this long side, half the other hypotheses':
+# a wide probable region on a smooth background is GrabCut's slowest case (up to 0.5 s
+# at 240 px, 20 ms at 120), and it is a coarse vote (a winner is refined at working
+# size). On the 18 real photos the mean IoU rises (0.618 -> 0.628: the coarser cut
+# follows the subject rather than its shading); 72 of 80 synthetic photos stay >= 0.9.
+RECT_SIZE = 120
 _BOX_PAD = 0.2  # a salient region's box is grown by this share of its size
 _SEED_DROP = 0.5  # inside the box, saliency under this share of its Otsu level is probable background
 _SURE = 0.8  # saliency above Otsu + this share of the rest is definite foreground (trimaps)
@@ -130,12 +136,15 @@ def saliency_labels(saliency: np.ndarray, seeding: str) -> np.ndarray | None:
 
 def hypothesis_labels(rgb: np.ndarray, detail: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """GrabCut labels of the centred-rectangle and saliency hypotheses of a small RGB
-    image: name -> (h, w) uint8 labels, leaving out those without both classes.
+    image: name -> uint8 labels, leaving out those without both classes. Each comes at
+    the size it is to be cut at: the image's (h, w), the rectangle's at long side
+    ``RECT_SIZE``.
 
     ``detail``: (h, w) high-pass magnitude for the focus cue (see
     :func:`jeanscv.silhouette.saliency.focus`), or None.
     """
-    out = {"rect": rect_labels(rgb.shape[:2])}
+    width, height = shape_for(rgb.shape[:2], RECT_SIZE)
+    out = {"rect": rect_labels((height, width))}
     lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
     graph = SuperpixelGraph.of(lab, _SUPERPIXEL_SIZE)
     sharpness = None if detail is None else focus(graph, detail)

@@ -528,7 +528,7 @@ def _auto(rgb: np.ndarray, scene: _Scene, details: dict) -> tuple[np.ndarray, st
     with _hypothesis_pool() as pool:
         grabcut_job = pool.submit(_grabcut_hypothesis, scene)
         cut_jobs = {
-            name: pool.submit(_grabcut_or_none, small, labels, _HYPOTHESIS_ITERATIONS)
+            name: pool.submit(_grabcut_or_none, resize(small, labels.shape[::-1], cv2.INTER_AREA), labels, _HYPOTHESIS_ITERATIONS)
             for name, labels in labelings.items()
         }
         coarse: dict[str, np.ndarray] = {}
@@ -571,7 +571,8 @@ def _auto(rgb: np.ndarray, scene: _Scene, details: dict) -> tuple[np.ndarray, st
     if winner == "threshold":
         return threshold_mask, "threshold"
     variant = grabcut_variant if winner == "grabcut" else "colour"
-    return _refine(rgb, usable[winner], scene, variant, source_width=scene.hypothesis_size[0]), "grabcut"
+    source_width = labelings[winner].shape[1] if winner in labelings else scene.hypothesis_size[0]
+    return _refine(rgb, usable[winner], scene, variant, source_width=source_width), "grabcut"
 
 
 # ----------------------------------------------------------------------------- public
