@@ -170,13 +170,14 @@ def side_contact(mask: np.ndarray) -> float:
     return touching / float(mask.shape[1] + 2 * mask.shape[0])
 
 
-def choose(candidates: dict[str, np.ndarray], contrast, agreement) -> tuple[str, list[Candidate]]:
+def choose(candidates: dict[str, np.ndarray], measure) -> tuple[str, list[Candidate]]:
     """The consensus pick: argmax of (mean IoU with the others) x ``contrast(mask)``
     x (1 - :func:`side_contact`)^2, x ``agreement(mask)**3`` when the border's colour
     model is decisive.
 
     ``candidates``: name -> coarse bool mask (unusable ones already left out);
-    ``contrast`` and ``agreement``: mask -> [0, 1]. The border model is decisive when
+    ``measure``: mask -> a dict with its "contrast" and "agreement", both in [0, 1]
+    (:meth:`jeanscv.silhouette.photo._Scene.measures`). The border model is decisive when
     some candidate agrees with its unexplained region at least ``_DECISIVE`` (a subject
     on a uniform or regularly textured ground, where that region is the subject; in
     cluttered real scenes it is not, and consensus alone decides). Returns the
@@ -186,8 +187,8 @@ def choose(candidates: dict[str, np.ndarray], contrast, agreement) -> tuple[str,
     for candidate in scored:
         others = [iou(candidate.mask, other.mask) for other in scored if other is not candidate]
         candidate.consensus = float(np.mean(others)) if others else 1.0
-        candidate.contrast = float(contrast(candidate.mask))
-        candidate.agreement = float(agreement(candidate.mask))
+        measures = measure(candidate.mask)
+        candidate.contrast, candidate.agreement = float(measures["contrast"]), float(measures["agreement"])
         candidate.side_contact = side_contact(candidate.mask)
     power = 3 if max(c.agreement for c in scored) >= _DECISIVE else 0
     for candidate in scored:
