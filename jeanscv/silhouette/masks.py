@@ -118,8 +118,9 @@ def clean(mask: np.ndarray) -> np.ndarray:
     if count <= 1:
         return np.zeros_like(mask)
     areas = stats[1:, cv2.CC_STAT_AREA]
-    keep = np.flatnonzero(areas >= KEEP_FRACTION * areas.max()) + 1
-    return fill_holes(opened.astype(bool) & np.isin(labels, keep))
+    kept = np.zeros(count, bool)
+    kept[1:] = areas >= KEEP_FRACTION * areas.max()
+    return fill_holes(opened.astype(bool) & kept[labels])
 
 
 def largest_component(mask: np.ndarray) -> np.ndarray:

@@ -161,17 +161,23 @@ def _local_contrast(moments: _LabMoments, mask: np.ndarray, floor: float = 4.0) 
     boundary = cv2.dilate(eight, disk(1)) > cv2.erode(eight, disk(1))
     if not boundary.any():
         return 0.0
-    inside = mask.astype(np.float32)
+    # Only the boundary's neighbourhood is blurred: a box around it, grown by the
+    # kernel's reach (OpenCV's float kernels reach 4 sigma), gives the same values there.
+    rows, cols = np.nonzero(boundary)
+    reach = int(np.ceil(4 * moments.sigma)) + 1
+    box = (slice(max(rows.min() - reach, 0), rows.max() + reach + 1), slice(max(cols.min() - reach, 0), cols.max() + reach + 1))
+    boundary = boundary[box]
+    inside = mask[box].astype(np.float32)
     blur = (0, 0), moments.sigma
     # The blur is linear, so the outside sums are the unweighted ones less the inside
     # ones; and only boundary pixels are compared, so only they are divided out.
     weight_in = cv2.GaussianBlur(inside, *blur)[boundary][:, None]
-    sum_in = cv2.GaussianBlur(moments.image * inside[..., None], *blur)[boundary]
-    square_in = cv2.GaussianBlur(moments.square * inside[..., None], *blur)[boundary]
+    sum_in = cv2.GaussianBlur(moments.image[box] * inside[..., None], *blur)[boundary]
+    square_in = cv2.GaussianBlur(moments.square[box] * inside[..., None], *blur)[boundary]
     sides = []
     for weight, total, square in (
         (weight_in, sum_in, square_in),
-        (1.0 - weight_in, moments.blurred[boundary] - sum_in, moments.blurred_square[boundary] - square_in),
+        (1.0 - weight_in, moments.blurred[box][boundary] - sum_in, moments.blurred_square[box][boundary] - square_in),
     ):
         mean = total / (weight + 1e-6)
         sides.append((mean, np.clip(square / (weight + 1e-6) - mean**2, 0, None)))
