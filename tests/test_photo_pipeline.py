@@ -61,8 +61,10 @@ def test_exif_orientation_6_gives_the_displayed_picture_with_jeans_in_place(tmp_
     turned = tmp_path / "turned.jpg"
     turned.write_bytes(jpeg_bytes(stored, orientation=6))
 
-    a = apply_jeans(upright, iterations=40)
-    b = apply_jeans(turned, iterations=40)
+    # Fits run to convergence: after 40 steps two masks that differ by JPEG noise (IoU
+    # 0.99) can still leave the jeans 10 px apart; after 100 they agree within 1-2 px.
+    a = apply_jeans(upright, iterations=100)
+    b = apply_jeans(turned, iterations=100)
     assert b.image.shape == photo.shape  # displayed size, not stored size
     jeans_a = np.asarray(a.report()["vertices_image"])
     jeans_b = np.asarray(b.report()["vertices_image"])

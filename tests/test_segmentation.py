@@ -392,12 +392,9 @@ def test_horizon_bands_are_out_of_the_running_unless_all_are_bands():
     band_too[9, :] = True
     subject = np.zeros((20, 40), bool)
     subject[10:16, 15:25] = True
-    def one(_):
-        return 1.0
-
-    winner, ranked = choose({"a": band, "b": band_too, "subject": subject}, one, one)
+    winner, ranked = choose({"a": band, "b": band_too, "subject": subject}, lambda _: {"contrast": 1.0, "agreement": 1.0})
     assert winner == "subject"
     assert [c.band for c in ranked] == [False, True, True]
     assert ranked[0].consensus == 1.0 and ranked[1].score == 0.0
-    winner, ranked = choose({"a": band, "b": band_too}, one, one)
+    winner, ranked = choose({"a": band, "b": band_too}, lambda _: {"contrast": 1.0, "agreement": 1.0})
     assert not any(c.band for c in ranked) and ranked[0].consensus == 0.8  # IoU of 4 rows with 5

@@ -29,6 +29,16 @@ def resize(array: np.ndarray, size: tuple[int, int], interpolation: int) -> np.n
     return cv2.resize(array, size, interpolation=interpolation)
 
 
+def downscale(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """An image area-averaged down to ``size`` = (width, height), halved first by
+    ``cv2.pyrDown`` while it is at least 4 times that size: OpenCV's area resampling
+    is about 10 times slower at non-integer factors (a 12-MP photo to 640 px: 48 ms,
+    against 22 ms this way)."""
+    while image.shape[1] >= 4 * size[0] and image.shape[0] >= 4 * size[1]:
+        image = cv2.pyrDown(image)
+    return resize(image, size, cv2.INTER_AREA)
+
+
 def shape_for(shape: tuple[int, int], long_side: int) -> tuple[int, int]:
     """(width, height) of ``shape`` = (H, W) scaled down so the long side is <= long_side."""
     height, width = shape
@@ -108,8 +118,9 @@ def clean(mask: np.ndarray) -> np.ndarray:
     if count <= 1:
         return np.zeros_like(mask)
     areas = stats[1:, cv2.CC_STAT_AREA]
-    keep = np.flatnonzero(areas >= KEEP_FRACTION * areas.max()) + 1
-    return fill_holes(opened.astype(bool) & np.isin(labels, keep))
+    kept = np.zeros(count, bool)
+    kept[1:] = areas >= KEEP_FRACTION * areas.max()
+    return fill_holes(opened.astype(bool) & kept[labels])
 
 
 def largest_component(mask: np.ndarray) -> np.ndarray:
