@@ -16,8 +16,7 @@ decides the pixels within one working pixel of the boundary at full resolution),
 How ``auto`` chooses (no alpha, mask or rect given): five hypotheses are made at coarse
 resolution: the best Otsu split of four channels (lightly blurred, and texture-blurred
 in textured scenes), GrabCut seeded where colours are rare on the border (weighted by
-spectral-residual saliency), GrabCut from a centred rectangle (cut at 120 px, its
-boundary re-decided at 240), and two GrabCuts seeded by boundary-connectivity saliency
+spectral-residual saliency), GrabCut from a centred rectangle, and two GrabCuts seeded by boundary-connectivity saliency
 on superpixels (:mod:`jeanscv.silhouette.saliency`). The one the others agree with
 most, along strong colour edges, wins (:mod:`jeanscv.silhouette.consensus`) and is
 refined at working resolution; ``details`` records every hypothesis's measures and the reason.
