@@ -196,7 +196,7 @@ def _main(
         except JeansError as exc:
             raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
 
-    from jeanscv._fast import backend as resolve_backend
+    from jeanscv._fast import backend as resolve_backend, kernels_cached
 
     try:
         device = resolve_device(device)
@@ -223,6 +223,9 @@ def _main(
     workers, why = _workers(jobs, len(found.jobs))
     progress.info(f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
                   f"({why}), device {device} ({backend}), preset {preset}, {iterations} iterations")
+    if backend == "fast" and kernels_cached() is False:
+        progress.info("compiling the fit kernels for this installation, once (about 30 s); "
+                      "later runs load them")
     records: list[dict] = []
     for problem in found.problems:
         progress.error(problem.display, problem.reason)

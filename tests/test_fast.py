@@ -245,3 +245,30 @@ def test_a_cpu_photo_run_never_imports_torch(tmp_path):
     """)
     assert out.splitlines()[-1] == "[]"
     assert (tmp_path / "cat.jeans.jpg").is_file()
+
+
+def test_kernels_cached_looks_for_the_step_loop_index(tmp_path, monkeypatch):
+    """A fresh install has no index of the step loop (its first fit compiles for about
+    half a minute, which the command line announces); a cache elsewhere is not looked into."""
+    from jeanscv._fast import kernels_cached
+
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    assert kernels_cached(tmp_path) is False
+    (tmp_path / "__pycache__").mkdir()
+    (tmp_path / "__pycache__" / "objective.descend-593.py311.nbi").write_bytes(b"")
+    assert kernels_cached(tmp_path) is True
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert kernels_cached(tmp_path) is None
+
+
+def test_command_line_announces_a_first_compilation(tmp_path, run_cli, monkeypatch):
+    import jeanscv._fast
+    from conftest import write_silhouette_png
+
+    source = write_silhouette_png(tmp_path / "shape.png")
+    notice = "compiling the fit kernels for this installation, once (about 30 s); later runs load them"
+    for cached, shown in ((False, True), (True, False), (None, False)):
+        monkeypatch.setattr(jeanscv._fast, "kernels_cached", lambda cached=cached: cached)
+        result = run_cli(source, "-o", tmp_path / "out", "--iterations", "2", "--backend", "fast", "--overwrite")
+        assert result.exit_code == 0, result.stderr
+        assert (notice in result.stderr.splitlines()) == shown

@@ -17,6 +17,7 @@ import importlib.util
 import math
 import os
 import threading
+from pathlib import Path
 
 import numpy as np
 
@@ -30,6 +31,19 @@ CAP_SEGMENTS = 8
 def available() -> bool:
     """Whether numba can be imported (checked without importing it)."""
     return importlib.util.find_spec("numba") is not None
+
+
+def kernels_cached(folder: Path = Path(__file__).parent) -> bool | None:
+    """Whether numba's cache beside the kernels in ``folder`` holds the fit's step loop.
+
+    False on a fresh install, whose first fit compiles the kernels (about half a minute,
+    once); None where numba keeps its cache elsewhere (``NUMBA_CACHE_DIR``, a read-only
+    install), which is not looked into. Reads file names only, so it costs no import
+    of numba. An index left by an older version counts as present.
+    """
+    if os.environ.get("NUMBA_CACHE_DIR") or not os.access(folder, os.W_OK):
+        return None
+    return any((folder / "__pycache__").glob("objective.descend-*.nbi"))
 
 
 def backend(requested: str | None = None, device: str = "cpu") -> str:
