@@ -27,20 +27,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .masks import border_ring, shape_for
+from .masks import border_ring
 from .saliency import SuperpixelGraph, focus, saliency_map
 
 _SUPERPIXEL_SIZE = 12  # SLIC region size, pixels (about 300 superpixels at 240x180)
 _RECT_INSET = 0.1  # the centred rectangle leaves this share of each side to the background
-# The long side the centred rectangle is cut at. At 120 px (half the others') it is 15%
-# faster (a wide probable region on a smooth background is GrabCut's slowest case: up
-# to 0.5 s at 240 px, 20 ms at 120; median segmentation 0.55 s instead of 0.64 s on
-# 12-MP copies), but once horizon bands are out of the running the coarser box wins or
-# loses photos where it should not: on the 18 real photos mean IoU 0.683 against 0.703,
-# jeans on the subject in 11 against 12, upright and passing every rule check in 13
-# against 15 (im_14, im_27 and sailboat3 lose more than long, rifle2 and bike gain).
-# Real photos come first, so it is cut at the others' size.
-RECT_SIZE = 240
+# The centred rectangle is cut at the others' size. Cut at 120 px it was 15% faster (a
+# wide probable region on a smooth background is GrabCut's slowest case: up to 0.5 s at
+# 240 px, 20 ms at 120), but once horizon bands were out of the running the coarser box
+# won or lost photos where it should not: on the 18 real photos mean IoU 0.683 against
+# 0.703, jeans on the subject in 11 against 12, upright and passing every rule check in
+# 13 against 15. Real photos come first.
 _BOX_PAD = 0.2  # a salient region's box is grown by this share of its size
 _SEED_DROP = 0.5  # inside the box, saliency under this share of its Otsu level is probable background
 _SURE = 0.8  # saliency above Otsu + this share of the rest is definite foreground (trimaps)
@@ -154,15 +151,12 @@ def saliency_labels(saliency: np.ndarray, seeding: str) -> np.ndarray | None:
 
 def hypothesis_labels(rgb: np.ndarray, detail: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """GrabCut labels of the centred-rectangle and saliency hypotheses of a small RGB
-    image: name -> uint8 labels, leaving out those without both classes. Each comes at
-    the size it is to be cut at: the image's (h, w), the rectangle's at long side
-    ``RECT_SIZE``.
+    image: name -> (h, w) uint8 labels, leaving out those without both classes.
 
     ``detail``: (h, w) high-pass magnitude for the focus cue (see
     :func:`jeanscv.silhouette.saliency.focus`), or None.
     """
-    width, height = shape_for(rgb.shape[:2], RECT_SIZE)
-    out = {"rect": rect_labels((height, width))}
+    out = {"rect": rect_labels(rgb.shape[:2])}
     lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
     graph = SuperpixelGraph.of(lab, _SUPERPIXEL_SIZE)
     sharpness = None if detail is None else focus(graph, detail)
@@ -233,12 +227,11 @@ def choose(candidates: dict[str, np.ndarray], measure) -> tuple[str, list[Candid
     name and every candidate with its measures, best first (bands last, with score 0).
     """
     scored = [Candidate(name, mask) for name, mask in candidates.items()]
-    for candidate in scored:
-        candidate.band = spans_width(candidate.mask)
-    running = [c for c in scored if not c.band] or scored
-    if len(running) == len(scored):
-        for candidate in scored:
-            candidate.band = False
+    bands = [spans_width(candidate.mask) for candidate in scored]
+    if not all(bands):  # when every candidate is a band, they all stay in the running
+        for candidate, band in zip(scored, bands):
+            candidate.band = band
+    running = [c for c in scored if not c.band]
     for candidate in running:
         others = [iou(candidate.mask, other.mask) for other in running if other is not candidate]
         candidate.consensus = float(np.mean(others)) if others else 1.0

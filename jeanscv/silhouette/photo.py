@@ -408,23 +408,6 @@ def _band_labels(mask: np.ndarray, band: int) -> np.ndarray:
     return labels
 
 
-def _coarse_to_fine_grabcut(image: np.ndarray, labels: np.ndarray, iterations: int) -> np.ndarray:
-    """GrabCut of ``image`` from ``labels`` given at a smaller size: ``iterations`` on a
-    copy of the labels' size, then one cut at full size, with the colour models learnt,
-    that re-decides a band of ~1.5 small pixels around the upsampled boundary (so the
-    boundary follows the image's edges at full size)."""
-    size = labels.shape[::-1]
-    if size == image.shape[1::-1]:
-        return _run_grabcut(image, labels, iterations)
-    models = np.zeros((1, 65)), np.zeros((1, 65))
-    small = _run_grabcut(resize(image, size, cv2.INTER_AREA), labels, iterations, models=models)
-    upsampled = resize(small.astype(np.float32), image.shape[1::-1], cv2.INTER_LINEAR) >= 0.5
-    if upsampled.all() or not upsampled.any():
-        return upsampled
-    band = max(2, int(np.ceil(1.5 * image.shape[1] / size[0])))
-    return _run_grabcut(image, _band_labels(upsampled, band), 1, models=models)
-
-
 def _seed_labels(scene: _Scene, scale: str) -> np.ndarray | None:
     """GrabCut labels from the border model and the saliency map.
 
@@ -555,7 +538,7 @@ def _grabcut(rgb: np.ndarray, scene: _Scene, rect_work=None) -> tuple[np.ndarray
 def _grabcut_or_none(image: np.ndarray, labels: np.ndarray, iterations: int) -> np.ndarray | None:
     """:func:`_run_grabcut` for hypotheses that may fail: None instead of an error."""
     try:
-        return _coarse_to_fine_grabcut(image, labels, iterations)
+        return _run_grabcut(image, labels, iterations)
     except JeansError:
         return None
 
