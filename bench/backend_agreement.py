@@ -43,24 +43,31 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=1000)
     args = parser.parse_args()
     cases = [(name, s, preset) for name, s in load_shapes().items() for preset in ("default", "paper")]
-    cases += [(f"creature:{seed}", random_creature(seed), "default")
-              for seed in range(args.first_seed, args.first_seed + args.creatures)]
+    cases += [
+        (f"creature:{seed}", random_creature(seed), "default")
+        for seed in range(args.first_seed, args.first_seed + args.creatures)
+    ]
     print("| shape | preset | same start | same posture | same checks | max vertex gap px | objective gap (rel) |")
     print("|---|---|---|---|---|---|---|")
     rows = []
     for name, silhouette, preset in cases:
         row = compare(silhouette, preset)
         rows.append((preset, row))
-        print(f"| {name} | {preset} | {row['start']} | {row['posture']} | {row['checks']} | {row['vertices_px']:.2g} "
-              f"| {row['objective_rel']:.2g} |", flush=True)
+        print(
+            f"| {name} | {preset} | {row['start']} | {row['posture']} | {row['checks']} | {row['vertices_px']:.2g} "
+            f"| {row['objective_rel']:.2g} |",
+            flush=True,
+        )
     for preset in ("default", "paper"):
         mine = [r for p, r in rows if p == preset]
         gaps = np.array([r["vertices_px"] for r in mine])
-        print(f"\n{preset}: {len(mine)} fits; same start {sum(r['start'] for r in mine)}, same posture "
-              f"{sum(r['posture'] for r in mine)}, same checks {sum(r['checks'] for r in mine)}; vertex gap "
-              f"median {np.median(gaps):.2g} px, max {gaps.max():.2g} px; objectives within "
-              f"{max(r['objective_rel'] for r in mine):.2g} (rel); first 5 steps within "
-              f"{max(r['first_steps'] for r in mine):.2g}")
+        print(
+            f"\n{preset}: {len(mine)} fits; same start {sum(r['start'] for r in mine)}, same posture "
+            f"{sum(r['posture'] for r in mine)}, same checks {sum(r['checks'] for r in mine)}; vertex gap "
+            f"median {np.median(gaps):.2g} px, max {gaps.max():.2g} px; objectives within "
+            f"{max(r['objective_rel'] for r in mine):.2g} (rel); first 5 steps within "
+            f"{max(r['first_steps'] for r in mine):.2g}"
+        )
 
 
 if __name__ == "__main__":

@@ -57,7 +57,16 @@ def make_photos(folder: Path, seeds: range, megapixels: float) -> None:
         "for s in range(int(sys.argv[3]), int(sys.argv[4]))]"
     )
     subprocess.run(
-        [sys.executable, "-c", code, str(Path(__file__).parent), str(folder), str(seeds.start), str(seeds.stop), str(megapixels)],
+        [
+            sys.executable,
+            "-c",
+            code,
+            str(Path(__file__).parent),
+            str(folder),
+            str(seeds.start),
+            str(seeds.stop),
+            str(megapixels),
+        ],
         check=True,
     )
 
@@ -81,8 +90,20 @@ def run(folder: Path, out: Path, jobs: int, options: list[str] | tuple[str, ...]
     report = out.with_suffix(".peak")
     began = time.perf_counter()
     subprocess.run(
-        [sys.executable, "-c", _MEASURED, str(report), str(folder), "-o", str(out), "-j", str(jobs), "-q", "--overwrite",
-         *options],
+        [
+            sys.executable,
+            "-c",
+            _MEASURED,
+            str(report),
+            str(folder),
+            "-o",
+            str(out),
+            "-j",
+            str(jobs),
+            "-q",
+            "--overwrite",
+            *options,
+        ],
         check=True,
     )
     wall = time.perf_counter() - began
@@ -125,8 +146,9 @@ _STAGES = (
 
 def stages(photo: Path, out: Path, backend: str) -> dict[str, str]:
     """Seconds per stage of one photo in a fresh process."""
-    done = subprocess.run([sys.executable, "-c", _STAGES, str(photo), str(out), backend],
-                          check=True, capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-c", _STAGES, str(photo), str(out), backend], check=True, capture_output=True, text=True
+    )
     return dict(line.split("\t") for line in done.stdout.splitlines())
 
 
@@ -159,8 +181,10 @@ def main() -> None:
                 print(f"| {backend} | {jobs} | {wall:.1f} | {args.count / wall:.2f} | {peak:.0f} |", flush=True)
 
         photo = sorted(folder.glob("*.jpg"))[0]
-        print(f"\none {args.megapixels:g}-MP photo, `jeanscv PHOTO` in a fresh process: "
-              + ", ".join(f"{b} {one_photo(photo, Path(tmp) / 'single', b):.2f} s" for b in BACKENDS))
+        print(
+            f"\none {args.megapixels:g}-MP photo, `jeanscv PHOTO` in a fresh process: "
+            + ", ".join(f"{b} {one_photo(photo, Path(tmp) / 'single', b):.2f} s" for b in BACKENDS)
+        )
         timed = {b: stages(photo, Path(tmp) / f"stages_{b}.jpg", b) for b in BACKENDS}
         print("\n| stage (fresh process) | " + " | ".join(f"{b} s" for b in BACKENDS) + " |")
         print("|---|" + "---|" * len(BACKENDS))

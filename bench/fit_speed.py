@@ -55,8 +55,10 @@ def main() -> None:
         fit(silhouette_zoo(["blob_a"])["blob_a"], iterations=5, backend=backend)
 
     print("CPU seconds per fit (one thread)\n")
-    print("| silhouette | default: fast s | default: torch s | speed-up | paper: fast s | paper: torch s | speed-up "
-          "| 1 start: fast ms/it | 1 start: torch ms/it |")
+    print(
+        "| silhouette | default: fast s | default: torch s | speed-up | paper: fast s | paper: torch s | speed-up "
+        "| 1 start: fast ms/it | 1 start: torch ms/it |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     figures: dict[str, list[float]] = {}
     for name, silhouette in shapes().items():

@@ -1,6 +1,6 @@
 """Each built-in garment on the paper's person and on a dog (docs/garments.png).
 
-    python bench/garments_figure.py [--out docs]
+python bench/garments_figure.py [--out docs]
 """
 
 from __future__ import annotations
@@ -44,7 +44,9 @@ def main() -> None:
             tile = Image.fromarray(render_silhouette_figure(silhouette, result.vertices, garment))
             ImageDraw.Draw(tile).text((4, 2), f"{garment.name} on {name}", fill=(0, 0, 0))
             tiles.append(tile)
-            print(f"| {garment.name} | {name} | {'6/6' if report.passed else 'fails ' + ', '.join(k for k, ok in report.checks.items() if not ok)} |")
+            print(
+                f"| {garment.name} | {name} | {'6/6' if report.passed else 'fails ' + ', '.join(k for k, ok in report.checks.items() if not ok)} |"
+            )
     sheet = Image.new("RGB", (256 * len(tiles), 256), "white")
     for i, tile in enumerate(tiles):
         sheet.paste(tile, (256 * i, 0))

@@ -42,9 +42,14 @@ def main() -> None:
     ys, xs = np.nonzero(dog)
     click = (float(np.median(xs)), float(np.median(ys)))
     panels = [photo.image]
-    for label, options in (("--objects all", dict(objects="all")), (f"--point {click[0]:g},{click[1]:g}", dict(points=[click]))):
+    for label, options in (
+        ("--objects all", dict(objects="all")),
+        (f"--point {click[0]:g},{click[1]:g}", dict(points=[click])),
+    ):
         result = apply_jeans(photo.image, **options)
-        print(f"{label}: {len(result.objects)} garment(s), on their own object: {', '.join(shares(result, photo.masks))}")
+        print(
+            f"{label}: {len(result.objects)} garment(s), on their own object: {', '.join(shares(result, photo.masks))}"
+        )
         panels.append(result.image)
     height, width = photo.image.shape[:2]
     gap = np.full((height, 8, 3), 255, np.uint8)

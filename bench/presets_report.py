@@ -63,7 +63,9 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
 
     shapes = load_shapes()
-    print("| silhouette | default: checks | default: objective | default: tilt | paper: checks | paper: objective (printed weights) |")
+    print(
+        "| silhouette | default: checks | default: objective | default: tilt | paper: checks | paper: objective (printed weights) |"
+    )
     print("|---|---|---|---|---|---|")
     tiles: dict[str, dict[str, Image.Image]] = {p: {} for p in PRESETS}
     passed = {p: 0 for p in PRESETS}
@@ -80,14 +82,19 @@ def main() -> None:
             passed[preset] += report.passed
             tilt = tilt_degrees(result.vertices, result.garment)
             upright[preset] += posture_name(tilt) == "upright"
-            cells += ["6/6" if report.passed else f"{6 - len(failed)}/6 (fails {', '.join(failed)})", f"{result.objective:.3f}"]
+            cells += [
+                "6/6" if report.passed else f"{6 - len(failed)}/6 (fails {', '.join(failed)})",
+                f"{result.objective:.3f}",
+            ]
             if preset == "default":
                 cells.append(f"{tilt:.0f}° {posture_name(tilt)}")
             tiles[preset][name] = tile(silhouette, result.vertices, f"{name} ({preset})", report.passed)
         print("| " + " | ".join(cells) + " |", flush=True)
     for preset in PRESETS:
-        print(f"\n{preset}: {passed[preset]}/{len(shapes)} silhouettes pass all six checks, {upright[preset]}/{len(shapes)} "
-              f"upright (tilt <= 30 degrees); {seconds[preset] / len(shapes):.2f} s per fit")
+        print(
+            f"\n{preset}: {passed[preset]}/{len(shapes)} silhouettes pass all six checks, {upright[preset]}/{len(shapes)} "
+            f"upright (tilt <= 30 degrees); {seconds[preset] / len(shapes):.2f} s per fit"
+        )
 
     for group in ("paper", "zoo"):
         names = [n for n in shapes if n.startswith(group + ":")]

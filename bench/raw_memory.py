@@ -44,15 +44,25 @@ def main() -> None:
         folder.mkdir()
         dng = folder / "big.dng"
         subprocess.run(
-            [sys.executable, "-c", _MAKE, str(Path(__file__).parent), str(ROOT / "sample_images"), str(dng),
-             str(args.megapixels)],
+            [
+                sys.executable,
+                "-c",
+                _MAKE,
+                str(Path(__file__).parent),
+                str(ROOT / "sample_images"),
+                str(dng),
+                str(args.megapixels),
+            ],
             check=True,
         )
         print(f"{dng.name}: {dng.stat().st_size / 1e6:.0f} MB DNG")
         print("| options | wall s | peak RSS (MB) | output size |")
         print("|---|---|---|---|")
-        for label, options in (("(default: full size)", []), ("--raw-half-size", ["--raw-half-size"]),
-                               ("--objects all", ["--objects", "all"])):
+        for label, options in (
+            ("(default: full size)", []),
+            ("--raw-half-size", ["--raw-half-size"]),
+            ("--objects all", ["--objects", "all"]),
+        ):
             out = Path(tmp) / f"out{len(options)}"
             wall, peak = run(dng, out, 1, options)
             with Image.open(out / "big.jeans.jpg") as image:

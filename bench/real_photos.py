@@ -38,7 +38,9 @@ def _tile(image: np.ndarray) -> np.ndarray:
     height, width = image.shape[:2]
     if image.ndim == 2:
         image = np.repeat(image[..., None], 3, axis=2)
-    return cv2.resize(image[..., :3], (max(1, round(width * TILE_HEIGHT / height)), TILE_HEIGHT), interpolation=cv2.INTER_AREA)
+    return cv2.resize(
+        image[..., :3], (max(1, round(width * TILE_HEIGHT / height)), TILE_HEIGHT), interpolation=cv2.INTER_AREA
+    )
 
 
 def _overlay(photo: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -46,7 +48,11 @@ def _overlay(photo: np.ndarray, mask: np.ndarray) -> np.ndarray:
     out = photo[..., :3].copy()
     out[~mask] = (out[~mask] * 0.3).astype(np.uint8)
     outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)).astype(bool)
-    out[cv2.dilate(outline.astype(np.uint8), np.ones((max(1, photo.shape[0] // 200),) * 2, np.uint8)).astype(bool)] = (255, 230, 0)
+    out[cv2.dilate(outline.astype(np.uint8), np.ones((max(1, photo.shape[0] // 200),) * 2, np.uint8)).astype(bool)] = (
+        255,
+        230,
+        0,
+    )
     return out
 
 
@@ -59,13 +65,20 @@ def _label(tile: np.ndarray, text: str) -> np.ndarray:
 
 def contact_sheet(rows: list[list[np.ndarray]], columns: int = 2, gap: int = 6) -> np.ndarray:
     """Rows of tiles (each row one photo), laid out ``columns`` photos across."""
-    strips = [np.concatenate(sum(([t, np.full((TILE_HEIGHT, gap, 3), 255, np.uint8)] for t in row), [])[:-1], axis=1) for row in rows]
+    strips = [
+        np.concatenate(sum(([t, np.full((TILE_HEIGHT, gap, 3), 255, np.uint8)] for t in row), [])[:-1], axis=1)
+        for row in rows
+    ]
     width = max(s.shape[1] for s in strips)
     strips = [np.pad(s, ((0, 0), (0, width - s.shape[1]), (0, 0)), constant_values=255) for s in strips]
     lines = []
     for i in range(0, len(strips), columns):
         group = strips[i : i + columns] + [np.full_like(strips[0], 255)] * (columns - len(strips[i : i + columns]))
-        lines.append(np.concatenate(sum(([s, np.full((TILE_HEIGHT, 3 * gap, 3), 255, np.uint8)] for s in group), [])[:-1], axis=1))
+        lines.append(
+            np.concatenate(
+                sum(([s, np.full((TILE_HEIGHT, 3 * gap, 3), 255, np.uint8)] for s in group), [])[:-1], axis=1
+            )
+        )
         lines.append(np.full((gap, lines[-1].shape[1], 3), 255, np.uint8))
     return np.concatenate(lines[:-1], axis=0)
 
@@ -74,7 +87,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--no-fit", action="store_true", help="segmentation only")
     parser.add_argument("--only", default="", help="comma-separated photo stems")
-    parser.add_argument("--sheet", default=str(ROOT / "docs" / "real_photos.jpg"), help="contact sheet path ('' for none)")
+    parser.add_argument(
+        "--sheet", default=str(ROOT / "docs" / "real_photos.jpg"), help="contact sheet path ('' for none)"
+    )
     parser.add_argument("--objects", default="one", help="passed to the pipeline where supported")
     args = parser.parse_args()
     if not photo_paths():
@@ -107,8 +122,11 @@ def main() -> None:
         ious.append(score)
         seconds.append(elapsed)
         cells = [f"{score:.3f}", f"{elapsed:.2f}"]
-        tiles = [_label(_tile(pixels), path.stem), _label(_tile(_overlay(pixels, reference)), "reference"),
-                 _label(_tile(_overlay(pixels, found)), f"found {score:.2f}")]
+        tiles = [
+            _label(_tile(pixels), path.stem),
+            _label(_tile(_overlay(pixels, reference)), "reference"),
+            _label(_tile(_overlay(pixels, found)), f"found {score:.2f}"),
+        ]
         if not args.no_fit and silhouette is not None:
             fit = jeanscv.fit(silhouette)
             jeans = polygon_mask(fit.vertices_image, reference.shape)

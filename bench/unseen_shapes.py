@@ -32,8 +32,10 @@ def main() -> None:
         failed = [name for name, ok in report.checks.items() if not ok]
         failures.update(failed)
         print(f"seed {seed}: {'pass' if report.passed else 'FAIL ' + ', '.join(failed)}, {posture}", flush=True)
-    print(f"\n{args.preset}: {passed}/{args.count} random creatures pass all six checks, {upright} upright; "
-          f"failures by check: {dict(failures)}")
+    print(
+        f"\n{args.preset}: {passed}/{args.count} random creatures pass all six checks, {upright} upright; "
+        f"failures by check: {dict(failures)}"
+    )
 
 
 if __name__ == "__main__":

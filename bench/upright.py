@@ -141,7 +141,9 @@ def rule_shapes(tally: Tally) -> None:
             if not passed:
                 failed[posture].append(name)
     for posture in POSTURES:
-        print(f"60 shapes, posture {posture}: {tally.passed[posture]}/{tally.count} pass all six; failing: {failed[posture]}")
+        print(
+            f"60 shapes, posture {posture}: {tally.passed[posture]}/{tally.count} pass all six; failing: {failed[posture]}"
+        )
 
 
 def paper_iou() -> None:

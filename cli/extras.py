@@ -16,7 +16,6 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-
 GIF_MAX_SIDE = 320
 JEANS_BLUE = (0, 0, 255)
 _FRAME_MS = 80
@@ -48,16 +47,13 @@ def svg_document(
     width, height = size
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',
-        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-        f'viewBox="0 0 {width} {height}">',
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}">',
     ]
     if title:
         lines.append(f"  <title>{escape(title)}</title>")
     lines.append(f'  <rect id="background" x="0" y="0" width="{width}" height="{height}" fill="#ffffff"/>')
     if contours:
-        d = " ".join(
-            "M" + " L".join(f"{_num(x)},{_num(y)}" for x, y in c) + " Z" for c in contours
-        )
+        d = " ".join("M" + " L".join(f"{_num(x)},{_num(y)}" for x, y in c) + " Z" for c in contours)
         lines.append(f'  <path id="silhouette" d={quoteattr(d)} fill="#000000" fill-rule="evenodd"/>')
     polygons = [vertices] if isinstance(vertices, np.ndarray) and vertices.ndim == 2 else list(vertices)
     for index, polygon in enumerate(polygons):
@@ -139,16 +135,18 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
         frames.append(Image.fromarray(frame))
     durations = [_FRAME_MS] * (len(frames) - 1) + [_LAST_FRAME_MS]
     buffer = io.BytesIO()
-    frames[0].save(
-        buffer, "GIF", save_all=True, append_images=frames[1:], duration=durations, loop=0, disposal=1
-    )
+    frames[0].save(buffer, "GIF", save_all=True, append_images=frames[1:], duration=durations, loop=0, disposal=1)
     return buffer.getvalue()
 
 
 # ---------------------------------------------------------------------------- memes
 
 _FONT_CANDIDATES = (
-    "Impact.ttf", "impact.ttf", "Anton-Regular.ttf", "DejaVuSans-Bold.ttf", "LiberationSans-Bold.ttf",
+    "Impact.ttf",
+    "impact.ttf",
+    "Anton-Regular.ttf",
+    "DejaVuSans-Bold.ttf",
+    "LiberationSans-Bold.ttf",
 )
 _FONT_DIRS = (
     Path(__file__).parent / "fonts",

@@ -96,64 +96,144 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     epilog=EPILOG,
 )
 @click.argument("paths", nargs=-1, metavar="PATH...")
-@click.option("-o", "--output-dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Write outputs here, mirroring the input folders (default: next to each input).")
+@click.option(
+    "-o",
+    "--output-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Write outputs here, mirroring the input folders (default: next to each input).",
+)
 @click.option("-r", "--recursive", is_flag=True, help="Descend into subfolders of folder arguments.")
-@click.option("--format", "fmt", type=click.Choice(["png", "jpg", "webp"]),
-              help="Output image format (default: photos keep theirs, RAW -> jpg, silhouettes -> png).")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["png", "jpg", "webp"]),
+    help="Output image format (default: photos keep theirs, RAW -> jpg, silhouettes -> png).",
+)
 @click.option("--overwrite", is_flag=True, help="Redo inputs whose outputs already exist.")
 @click.option("--json", "want_json", is_flag=True, help="Also write NAME.jeans.json: the fit report.")
 @click.option("--svg", "want_svg", is_flag=True, help="Also write NAME.jeans.svg: silhouette and jeans as vectors.")
 @click.option("--gif", "want_gif", is_flag=True, help="Also write NAME.jeans.gif: the optimisation, animated.")
-@click.option("--gif-frames", type=click.IntRange(2, 500), default=50, show_default=True,
-              help="Most frames in the --gif animation.")
-@click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write a JSON-lines report, one line per input, to this file.")
+@click.option(
+    "--gif-frames",
+    type=click.IntRange(2, 500),
+    default=50,
+    show_default=True,
+    help="Most frames in the --gif animation.",
+)
+@click.option(
+    "--report",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write a JSON-lines report, one line per input, to this file.",
+)
 @click.option("--preset", default="default", show_default=True, help="Fitting preset (see --list-presets).")
-@click.option("--posture", type=click.Choice(["upright", "any"]), default="upright", show_default=True,
-              help="upright: the garment hangs down unless no upright fit passes the rule checks; "
-                   "any: every posture competes (the algorithm's wilder answers).")
-@click.option("--garment", default="jeans", show_default=True,
-              help="Garment: a name (see --list-garments) or a .toml file.")
-@click.option("--iterations", type=click.IntRange(0), default=100, show_default=True,
-              help="Optimiser steps.")
+@click.option(
+    "--posture",
+    type=click.Choice(["upright", "any"]),
+    default="upright",
+    show_default=True,
+    help="upright: the garment hangs down unless no upright fit passes the rule checks; "
+    "any: every posture competes (the algorithm's wilder answers).",
+)
+@click.option(
+    "--garment", default="jeans", show_default=True, help="Garment: a name (see --list-garments) or a .toml file."
+)
+@click.option("--iterations", type=click.IntRange(0), default=100, show_default=True, help="Optimiser steps.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed (same seed, same result).")
 @click.option("--starts", type=click.IntRange(1), help="Initial placements tried (default: the preset's).")
-@click.option("--kind", type=click.Choice(["auto", "silhouette", "photo"]), default="auto", show_default=True,
-              help="Treat inputs as silhouette drawings or photos.")
-@click.option("--silhouette", "silhouette_method", default="auto", show_default=True, callback=_check_silhouette,
-              help="How to cut the object out of a photo: auto, alpha, threshold, grabcut, or a plugin's name.")
+@click.option(
+    "--kind",
+    type=click.Choice(["auto", "silhouette", "photo"]),
+    default="auto",
+    show_default=True,
+    help="Treat inputs as silhouette drawings or photos.",
+)
+@click.option(
+    "--silhouette",
+    "silhouette_method",
+    default="auto",
+    show_default=True,
+    callback=_check_silhouette,
+    help="How to cut the object out of a photo: auto, alpha, threshold, grabcut, or a plugin's name.",
+)
 @click.option("--threshold", type=click.FloatRange(0, 255), help="Grey level for --silhouette threshold.")
 @click.option("--mask", type=click.Path(exists=True, dir_okay=False), help="Mask image for a single input.")
 @click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")
-@click.option("--objects", type=click.Choice(["one", "all"]), default="one", show_default=True,
-              help="Jeans on the main subject only, or on every separate object of a photo.")
-@click.option("--point", "points", multiple=True, callback=_parse_points, metavar="X,Y",
-              help="Put jeans on the object under this pixel of the photo, like a click (repeatable; one input).")
-@click.option("--style", type=click.Choice(["denim", "flat"]), default="denim", show_default=True,
-              help="denim texture, or the paper's flat blue.")
+@click.option(
+    "--objects",
+    type=click.Choice(["one", "all"]),
+    default="one",
+    show_default=True,
+    help="Jeans on the main subject only, or on every separate object of a photo.",
+)
+@click.option(
+    "--point",
+    "points",
+    multiple=True,
+    callback=_parse_points,
+    metavar="X,Y",
+    help="Put jeans on the object under this pixel of the photo, like a click (repeatable; one input).",
+)
+@click.option(
+    "--style",
+    type=click.Choice(["denim", "flat"]),
+    default="denim",
+    show_default=True,
+    help="denim texture, or the paper's flat blue.",
+)
 @click.option("--clip/--no-clip", default=True, show_default=True, help="Paint jeans only on the object.")
 @click.option("--top", metavar="TEXT", help="Meme caption along the top.")
 @click.option("--bottom", metavar="TEXT", help="Meme caption along the bottom.")
 @click.option("--side-by-side", is_flag=True, help="Output the original and the result side by side.")
-@click.option("--max-pixels", type=click.IntRange(1), default=100_000_000, show_default=True,
-              help="Refuse images larger than this.")
+@click.option(
+    "--max-pixels",
+    type=click.IntRange(1),
+    default=100_000_000,
+    show_default=True,
+    help="Refuse images larger than this.",
+)
 @click.option("--raw-half-size", is_flag=True, help="Decode RAW files at half size, for speed (default: full size).")
-@click.option("--raw-full-size", is_flag=True, hidden=True, expose_value=False,
-              help="Accepted for compatibility: RAW files decode at full size by default.")
-@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
-              help="Where to fit.")
-@click.option("--backend", type=click.Choice(["auto", "fast", "torch"]), default="auto", show_default=True,
-              help="Fitting code on the CPU: fast (compiled kernel) or torch (the reference); "
-                   "auto: $JEANSCV_BACKEND, else fast when numba is installed.")
-@click.option("-j", "--jobs", type=click.IntRange(1),
-              help="Worker processes for many inputs (default: one per core, as memory allows).")
+@click.option(
+    "--raw-full-size",
+    is_flag=True,
+    hidden=True,
+    expose_value=False,
+    help="Accepted for compatibility: RAW files decode at full size by default.",
+)
+@click.option(
+    "--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True, help="Where to fit."
+)
+@click.option(
+    "--backend",
+    type=click.Choice(["auto", "fast", "torch"]),
+    default="auto",
+    show_default=True,
+    help="Fitting code on the CPU: fast (compiled kernel) or torch (the reference); "
+    "auto: $JEANSCV_BACKEND, else fast when numba is installed.",
+)
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1),
+    help="Worker processes for many inputs (default: one per core, as memory allows).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
 @click.option("-v", "--verbose", is_flag=True, help="Print the silhouette method, device and losses per file.")
-@click.option("--list-presets", is_flag=True, expose_value=False, is_eager=True, callback=_list_presets,
-              help="List the presets and exit.")
-@click.option("--list-garments", is_flag=True, expose_value=False, is_eager=True, callback=_list_garments,
-              help="List the garments and exit.")
+@click.option(
+    "--list-presets",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_list_presets,
+    help="List the presets and exit.",
+)
+@click.option(
+    "--list-garments",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_list_garments,
+    help="List the garments and exit.",
+)
 @click.version_option(__version__, "--version", prog_name="jeanscv", message="%(prog)s %(version)s")
 @click.pass_context
 def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
@@ -174,10 +254,43 @@ def _usage(message: str) -> click.UsageError:
 
 
 def _main(
-    ctx: click.Context, paths: tuple[str, ...], *, output_dir, recursive, fmt, overwrite, want_json, want_svg,
-    want_gif, gif_frames, report, preset, posture, garment, iterations, seed, starts, kind, silhouette_method, threshold,
-    mask, rect, objects, points, style, clip, top, bottom, side_by_side, max_pixels, raw_half_size, device, backend,
-    jobs, quiet, verbose,
+    ctx: click.Context,
+    paths: tuple[str, ...],
+    *,
+    output_dir,
+    recursive,
+    fmt,
+    overwrite,
+    want_json,
+    want_svg,
+    want_gif,
+    gif_frames,
+    report,
+    preset,
+    posture,
+    garment,
+    iterations,
+    seed,
+    starts,
+    kind,
+    silhouette_method,
+    threshold,
+    mask,
+    rect,
+    objects,
+    points,
+    style,
+    clip,
+    top,
+    bottom,
+    side_by_side,
+    max_pixels,
+    raw_half_size,
+    device,
+    backend,
+    jobs,
+    quiet,
+    verbose,
 ) -> int:
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
@@ -196,7 +309,8 @@ def _main(
         except JeansError as exc:
             raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
 
-    from jeanscv._fast import backend as resolve_backend, kernels_cached
+    from jeanscv._fast import backend as resolve_backend
+    from jeanscv._fast import kernels_cached
 
     try:
         device = resolve_device(device)
@@ -212,35 +326,82 @@ def _main(
     if points and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
     options = Options(
-        preset=preset, posture=posture, garment=garment, iterations=iterations, seed=seed, starts=starts, kind=kind,
-        silhouette=silhouette_method, threshold=threshold, mask=mask, rect=rect, objects=objects, points=points,
-        style=style, clip=clip, max_pixels=max_pixels, raw_half_size=raw_half_size, device=device,
-        backend=backend, overwrite=overwrite, top=top, bottom=bottom, side_by_side=side_by_side, gif_frames=gif_frames,
+        preset=preset,
+        posture=posture,
+        garment=garment,
+        iterations=iterations,
+        seed=seed,
+        starts=starts,
+        kind=kind,
+        silhouette=silhouette_method,
+        threshold=threshold,
+        mask=mask,
+        rect=rect,
+        objects=objects,
+        points=points,
+        style=style,
+        clip=clip,
+        max_pixels=max_pixels,
+        raw_half_size=raw_half_size,
+        device=device,
+        backend=backend,
+        overwrite=overwrite,
+        top=top,
+        bottom=bottom,
+        side_by_side=side_by_side,
+        gif_frames=gif_frames,
     )
 
     progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
     noun = "input" if len(found.jobs) == 1 else "inputs"
     workers, why = _workers(jobs, len(found.jobs))
-    progress.info(f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
-                  f"({why}), device {device} ({backend}), preset {preset}, {iterations} iterations")
+    progress.info(
+        f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
+        f"({why}), device {device} ({backend}), preset {preset}, {iterations} iterations"
+    )
     if backend == "fast" and kernels_cached() is False:
-        progress.info("compiling the fit kernels for this installation, once (about 30 s); "
-                      "later runs load them")
+        progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
     records: list[dict] = []
     for problem in found.problems:
         progress.error(problem.display, problem.reason)
         progress.counts["failed"] += 1
-        records.append({"status": "failed", "input": problem.display, "output": "", "written": [],
-                        "error": problem.reason, "seconds": 0.0})
+        records.append(
+            {
+                "status": "failed",
+                "input": problem.display,
+                "output": "",
+                "written": [],
+                "error": problem.reason,
+                "seconds": 0.0,
+            }
+        )
     progress.skip_quietly(len(found.ignored))
     for name in found.ignored:
-        records.append({"status": "skipped", "input": name, "output": "", "written": [], "error": "",
-                        "reason": "not a supported image type", "seconds": 0.0})
+        records.append(
+            {
+                "status": "skipped",
+                "input": name,
+                "output": "",
+                "written": [],
+                "error": "",
+                "reason": "not a supported image type",
+                "seconds": 0.0,
+            }
+        )
     for name in found.own_outputs:
         progress.info(f"{name}: skipped (a jeanscv output, not an input)")
         progress.counts["skipped"] += 1
-        records.append({"status": "skipped", "input": name, "output": "", "written": [], "error": "",
-                        "reason": "a jeanscv output", "seconds": 0.0})
+        records.append(
+            {
+                "status": "skipped",
+                "input": name,
+                "output": "",
+                "written": [],
+                "error": "",
+                "reason": "a jeanscv output",
+                "seconds": 0.0,
+            }
+        )
 
     outcomes: dict[int, Outcome] = {}
     pending = []
@@ -248,8 +409,13 @@ def _main(
         if wanted_outputs(job, overwrite):
             pending.append(job)
         else:
-            outcome = Outcome(job.index, job.display, "skipped", str(job.outputs["image"]),
-                              error="output exists; --overwrite redoes it")
+            outcome = Outcome(
+                job.index,
+                job.display,
+                "skipped",
+                str(job.outputs["image"]),
+                error="output exists; --overwrite redoes it",
+            )
             outcomes[job.index] = outcome
             progress.finish(outcome)
 
@@ -352,8 +518,10 @@ def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
 
     threads = max(1, (os.cpu_count() or 1) // workers)
     pool = ProcessPoolExecutor(
-        max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-        initializer=worker_init, initargs=(threads,),
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=worker_init,
+        initargs=(threads,),
     )
     clean = False
     try:
@@ -364,8 +532,7 @@ def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
             try:
                 outcome = future.result()
             except Exception as exc:  # noqa: BLE001 - a worker died (crash, killed): this file failed
-                outcome = Outcome(job.index, job.display, "failed",
-                                  error=f"worker process died ({type(exc).__name__})")
+                outcome = Outcome(job.index, job.display, "failed", error=f"worker process died ({type(exc).__name__})")
             outcomes[job.index] = outcome
             progress.finish(outcome)
         clean = True

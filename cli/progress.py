@@ -23,8 +23,14 @@ def _clock(seconds: float) -> str:
 class Progress:
     """Reports per-file progress and the summary on ``stream`` (stderr by default)."""
 
-    def __init__(self, total: int, quiet: bool = False, verbose: bool = False, stream: TextIO | None = None,
-                 tty: bool | None = None):
+    def __init__(
+        self,
+        total: int,
+        quiet: bool = False,
+        verbose: bool = False,
+        stream: TextIO | None = None,
+        tty: bool | None = None,
+    ):
         self.stream = stream or sys.stderr
         self.total = total
         self.quiet = quiet
@@ -59,7 +65,7 @@ class Progress:
         if current:
             width = shutil.get_terminal_size((80, 20)).columns
             room = max(10, width - len(status) - 4)
-            shown = current if len(current) <= room else "…" + current[-(room - 1):]
+            shown = current if len(current) <= room else "…" + current[-(room - 1) :]
             status += f"  {shown}"
         self.stream.write("\r\x1b[K" + status)
         self.stream.flush()
@@ -108,13 +114,17 @@ class Progress:
             self._write(f"    terms: {terms}")
             objects = info.get("objects", [])
             for obj in objects[:1]:
-                self._write(f"    posture: {obj['posture']} (tilt {obj['tilt_degrees']:.0f} degrees), "
-                            f"rules {'passed' if obj['rules_passed'] else 'failed'}")
+                self._write(
+                    f"    posture: {obj['posture']} (tilt {obj['tilt_degrees']:.0f} degrees), "
+                    f"rules {'passed' if obj['rules_passed'] else 'failed'}"
+                )
             for number, obj in enumerate(objects if len(objects) > 1 else [], 1):
                 x, y, w, h = obj["box"]
-                self._write(f"    object {number}: {obj['method']}, box {x},{y} {w}x{h}, "
-                            f"objective {obj['objective']:.6g}, {obj['posture']}, "
-                            f"rules {'passed' if obj['rules_passed'] else 'failed'}")
+                self._write(
+                    f"    object {number}: {obj['method']}, box {x},{y} {w}x{h}, "
+                    f"objective {obj['objective']:.6g}, {obj['posture']}, "
+                    f"rules {'passed' if obj['rules_passed'] else 'failed'}"
+                )
         self._redraw()
 
     def skip_quietly(self, count: int) -> None:

@@ -152,9 +152,8 @@ def report_json(result, job: Job) -> str:
 
 def _run(job: Job, options: Options, outcome: Outcome) -> None:
     from jeanscv import api
-    from jeanscv.io.write import atomic_write_bytes
-
     from jeanscv.api import load_mask, silhouette_contours
+    from jeanscv.io.write import atomic_write_bytes
 
     from .extras import optimisation_gif, svg_document
 
@@ -226,9 +225,14 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
 def _object_info(obj) -> dict:
     """One object's line of ``-v`` and of ``--report``: method, box, objective, rules passed, posture."""
     entry = obj.report()
-    return {"method": entry["method"], "box": entry["box"], "objective": entry["objective"],
-            "rules_passed": entry["rules"]["passed"], "posture": entry["posture"],
-            "tilt_degrees": entry["tilt_degrees"]}
+    return {
+        "method": entry["method"],
+        "box": entry["box"],
+        "objective": entry["objective"],
+        "rules_passed": entry["rules"]["passed"],
+        "posture": entry["posture"],
+        "tilt_degrees": entry["tilt_degrees"],
+    }
 
 
 # Worker processes: whether a file is being processed, for the SIGTERM handler.

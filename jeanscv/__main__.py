@@ -42,6 +42,7 @@ def worker_init(threads: int) -> None:
 
     init_worker(threads)
 
+
 if __name__ == "__main__":
     from jeanscv_cli.main import main
 

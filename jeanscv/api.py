@@ -197,7 +197,9 @@ def extract_silhouette(
     else:
         result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
     canvas, framing = frame_mask(result.mask)
-    return Silhouette(result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details))
+    return Silhouette(
+        result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details)
+    )
 
 
 def extract_silhouettes(
@@ -320,8 +322,15 @@ def fit(
 
     canvas = silhouette.canvas if isinstance(silhouette, Silhouette) else silhouette
     result = _fit(
-        canvas, preset, get_garment(garment), iterations=iterations, seed=seed, starts=starts,
-        device=resolve_device(device), posture=posture, backend=backend,
+        canvas,
+        preset,
+        get_garment(garment),
+        iterations=iterations,
+        seed=seed,
+        starts=starts,
+        device=resolve_device(device),
+        posture=posture,
+        backend=backend,
     )
     if isinstance(silhouette, Silhouette):
         result.vertices_image = silhouette.framing.to_image(result.vertices)

@@ -40,9 +40,7 @@ def _check_vertices(vertices: np.ndarray, garment: Garment) -> np.ndarray:
     except (TypeError, ValueError):
         raise JeansError("jeans vertices are not numbers") from None
     if vertices.shape != (garment.num_vertices, 2):
-        raise JeansError(
-            f"jeans vertices must have shape ({garment.num_vertices}, 2), got {vertices.shape}"
-        )
+        raise JeansError(f"jeans vertices must have shape ({garment.num_vertices}, 2), got {vertices.shape}")
     if not np.all(np.isfinite(vertices)):
         raise JeansError("jeans vertices are not finite")
     if np.abs(vertices).max() > _MAX_COORD:
@@ -77,15 +75,14 @@ def polygon_coverage_patch(vertices: np.ndarray, height: int, width: int) -> np.
         out[top : top + strip] = polygon_coverage(vertices - np.array([0.0, top]), strip, width)
     return out
 
+
 # --------------------------------------------------------------------------- public API
 
 
 def _check_image(image: np.ndarray) -> np.ndarray:
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] not in (3, 4):
-        raise JeansError(
-            f"image must be an H x W x 3 or 4 uint8 array, got {image.dtype} {image.shape}"
-        )
+        raise JeansError(f"image must be an H x W x 3 or 4 uint8 array, got {image.dtype} {image.shape}")
     if image.shape[0] == 0 or image.shape[1] == 0:
         raise JeansError("image is empty")
     return image
@@ -231,8 +228,14 @@ DENIM_MAX_PIXELS = 4_000_000
 
 
 def _composite_large(
-    out: np.ndarray, image: np.ndarray, box: tuple[int, int, int, int], local: np.ndarray,
-    mask: np.ndarray | None, clip: bool, garment: Garment, seed: int,
+    out: np.ndarray,
+    image: np.ndarray,
+    box: tuple[int, int, int, int],
+    local: np.ndarray,
+    mask: np.ndarray | None,
+    clip: bool,
+    garment: Garment,
+    seed: int,
 ) -> None:
     """Denim over a box larger than ``DENIM_MAX_PIXELS``, painted into ``out`` in place.
 
@@ -255,8 +258,13 @@ def _composite_large(
         if small_weight is not None:
             small_alpha = np.multiply(small_weight, small_coverage, out=small_weight)
     small = render_denim(
-        small_image, (0, 0, small_w, small_h), small_vertices, small_coverage, small_alpha,
-        garment, seed,
+        small_image,
+        (0, 0, small_w, small_h),
+        small_vertices,
+        small_coverage,
+        small_alpha,
+        garment,
+        seed,
     )
     rows = max(1, _STRIP_PIXELS // max(w, 1))
     for top in range(0, h, rows):
@@ -272,7 +280,10 @@ def _composite_large(
         # centres at +0.5, written as the inverse affine map of warpAffine.
         to_small = np.array([[sx, 0.0, 0.5 * sx - 0.5], [0.0, sy, (top + 0.5) * sy - 0.5]])
         jeans = cv2.warpAffine(
-            small, to_small, (w, height), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+            small,
+            to_small,
+            (w, height),
+            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
             borderMode=cv2.BORDER_REPLICATE,
         )
         _paint_windows(out[strip[1] : strip[3], x0:x1], np.moveaxis(jeans, -1, 0), alpha, painted)

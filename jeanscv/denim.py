@@ -70,8 +70,13 @@ class _Layer:
         """
         if polylines:
             cv2.polylines(
-                self.ink, [_cv_points(p) for p in polylines], False,
-                round(255 * value * min(width, 1.0)), max(1, round(width)), cv2.LINE_AA, _SHIFT,
+                self.ink,
+                [_cv_points(p) for p in polylines],
+                False,
+                round(255 * value * min(width, 1.0)),
+                max(1, round(width)),
+                cv2.LINE_AA,
+                _SHIFT,
             )
 
     def polygons(self, polygons: list[np.ndarray], value: float = 1.0) -> None:
@@ -168,8 +173,10 @@ def _dashes(polyline: np.ndarray, dash: float, gap: float, box: tuple[int, int])
     )
     h, w = box
     keep = (
-        (seg[:, :, 0].max(1) > -dash) & (seg[:, :, 0].min(1) < w + dash)
-        & (seg[:, :, 1].max(1) > -dash) & (seg[:, :, 1].min(1) < h + dash)
+        (seg[:, :, 0].max(1) > -dash)
+        & (seg[:, :, 0].min(1) < w + dash)
+        & (seg[:, :, 1].max(1) > -dash)
+        & (seg[:, :, 1].min(1) < h + dash)
     )
     return list(seg[keep])
 
@@ -261,8 +268,12 @@ class _FrameNoise:
     """
 
     def __init__(
-        self, rng: np.random.Generator, layout: _Layout, shape: tuple[int, int],
-        step_across: float, step_down: float,
+        self,
+        rng: np.random.Generator,
+        layout: _Layout,
+        shape: tuple[int, int],
+        step_across: float,
+        step_down: float,
     ) -> None:
         h, w = shape
         corners = np.array([[0, 0], [w, 0], [0, h], [w, h]], np.float64)
@@ -287,7 +298,9 @@ class _FrameNoise:
         matrix = self.to_grid.copy()
         matrix[:, 2] += matrix[:, 1] * top
         noise = cv2.warpAffine(
-            self.grid, matrix, (self.width if right is None else right, bottom - top),
+            self.grid,
+            matrix,
+            (self.width if right is None else right, bottom - top),
             flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
         )
         noise *= np.float32(1.0 / 0.8)  # bicubic smoothing leaves about 0.8 std
@@ -440,9 +453,7 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
         t = np.linspace(0, 1, 16)[:, None]
         for sign in (-1.0, 1.0):
             for k in range(6):
-                start = crotch + unit * (
-                    layout.across * sign * (0.09 + 0.015 * k) + layout.down * (0.035 * k - 0.07)
-                )
+                start = crotch + unit * (layout.across * sign * (0.09 + 0.015 * k) + layout.down * (0.035 * k - 0.07))
                 angle = np.deg2rad(rng.uniform(8, 22) + 4 * k)
                 direction = layout.across * sign * np.cos(angle) - layout.down * np.sin(angle)
                 spine = start + direction * rng.uniform(0.17, 0.27) * unit * t
@@ -470,13 +481,21 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
     wear.polygons(loops, 0.2)
 
     return _Details(
-        wear=wear.alpha(0.4 * seam_w), grooves=grooves.alpha(0.5 * seam_w), outline=outline.alpha(0.25 * seam_w),
-        raised=raised, flip=flip, thread=thread, metal=metal,
+        wear=wear.alpha(0.4 * seam_w),
+        grooves=grooves.alpha(0.5 * seam_w),
+        outline=outline.alpha(0.25 * seam_w),
+        raised=raised,
+        flip=flip,
+        thread=thread,
+        metal=metal,
     )
 
 
 def _photo_shading(
-    image: np.ndarray, box: tuple[int, int, int, int], weight: np.ndarray, unit: float,
+    image: np.ndarray,
+    box: tuple[int, int, int, int],
+    weight: np.ndarray,
+    unit: float,
 ) -> Callable[[slice, slice], np.ndarray]:
     """Multiplicative shading from the photo under the jeans, as a function of a window
     ``(rows, cols)`` of the patch that returns the shading there, ``float32``.
@@ -539,8 +558,14 @@ def row_windows(needed: np.ndarray, top: int = 0) -> list[tuple[slice, slice]]:
 
 
 def denim_windows(
-    image: np.ndarray, box: tuple[int, int, int, int], vertices: np.ndarray, coverage: np.ndarray,
-    weight: np.ndarray, garment: Garment, seed: int, needed: np.ndarray,
+    image: np.ndarray,
+    box: tuple[int, int, int, int],
+    vertices: np.ndarray,
+    coverage: np.ndarray,
+    weight: np.ndarray,
+    garment: Garment,
+    seed: int,
+    needed: np.ndarray,
 ) -> Iterator[tuple[slice, slice, np.ndarray]]:
     """Denim colour over the patch ``box`` of ``image``, one window at a time.
 
@@ -663,8 +688,13 @@ def denim_windows(
 
 
 def render_denim(
-    image: np.ndarray, box: tuple[int, int, int, int], vertices: np.ndarray, coverage: np.ndarray,
-    weight: np.ndarray, garment: Garment, seed: int,
+    image: np.ndarray,
+    box: tuple[int, int, int, int],
+    vertices: np.ndarray,
+    coverage: np.ndarray,
+    weight: np.ndarray,
+    garment: Garment,
+    seed: int,
 ) -> np.ndarray:
     """Denim colour ``(h, w, 3) float32`` (0..255) over the whole patch ``box`` of
     ``image``; the arguments are those of :func:`denim_windows`."""
@@ -702,4 +732,3 @@ def _paint_metal(colour: np.ndarray, light: np.ndarray, rows: slice, cols: slice
         paint = rgb * (lit * (1 - 0.45 * rim))[..., None] + 255 * spec[..., None] * 0.7
         paint *= np.sqrt(light[inside])[..., None]
         window += disc[..., None] * (paint - window)
-

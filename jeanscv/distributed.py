@@ -15,8 +15,9 @@ import inspect
 import json
 import os
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from .errors import JeansError
 
@@ -54,9 +55,10 @@ def output_paths(paths: Iterable[str | os.PathLike], output_dir: str | os.PathLi
         seen.add(key)
         ext = output_extension(path)
         base = path.stem
-        if os.path.normcase(str(folder / f"{base}.jeans{ext}")) in claimed or os.path.normcase(
-            str(folder / f"{base}.jeans.json")
-        ) in claimed:
+        if (
+            os.path.normcase(str(folder / f"{base}.jeans{ext}")) in claimed
+            or os.path.normcase(str(folder / f"{base}.jeans.json")) in claimed
+        ):
             base = path.name
         picture, report = folder / f"{base}.jeans{ext}", folder / f"{base}.jeans.json"
         claimed.update({os.path.normcase(str(picture)), os.path.normcase(str(report))})
@@ -183,8 +185,14 @@ def run_on_dask(
             try:
                 record = future.result()
             except Exception as exc:  # noqa: BLE001 - a lost worker fails only its inputs
-                record = {"status": "failed", "input": str(path), "output": "", "report": "",
-                          "error": f"the task failed on the cluster: {_failure_reason(exc)}", "seconds": 0.0}
+                record = {
+                    "status": "failed",
+                    "input": str(path),
+                    "output": "",
+                    "report": "",
+                    "error": f"the task failed on the cluster: {_failure_reason(exc)}",
+                    "seconds": 0.0,
+                }
             records.append(record)
     finally:
         if own_client is not None:

@@ -235,7 +235,9 @@ class BatchAdam:
         self.exp_avg_sq = self.exp_avg_sq[index]
 
 
-def _select(candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, garment: Garment, preset: Preset) -> int:
+def _select(
+    candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, garment: Garment, preset: Preset
+) -> int:
     """Index of the winning start.
 
     ``objective``: the lowest objective. ``rules``: fewest failed rule checks first,
@@ -273,7 +275,9 @@ def _survivors(objectives: np.ndarray, postures: list[int], preset: Preset) -> n
     return np.sort(np.asarray(order[: preset.keep], dtype=np.int64))
 
 
-def _upright_survivors(objectives: np.ndarray, tilts: list[float], max_tilt: float, upright: int, tilted: int) -> np.ndarray:
+def _upright_survivors(
+    objectives: np.ndarray, tilts: list[float], max_tilt: float, upright: int, tilted: int
+) -> np.ndarray:
     """Sorted indices of the starts that go on under an upright plan: the ``upright`` best
     starts tilted at most ``max_tilt`` degrees and the ``tilted`` best others, by objective,
     topped up from the others (or the upright ones) when one kind runs short; diverged
@@ -290,8 +294,11 @@ def _prunings(preset: Preset, iterations: int, num_starts: int) -> dict[int, tup
     """``{step: survivors}`` after which steps the batch shrinks: ``(upright, tilted)``
     counts under an upright plan, else None for the preset's ``keep``."""
     if preset.upright:
-        return {int(iterations * fraction): (up, tilted) for fraction, up, tilted in preset.upright.prunings
-                if up + tilted < num_starts}
+        return {
+            int(iterations * fraction): (up, tilted)
+            for fraction, up, tilted in preset.upright.prunings
+            if up + tilted < num_starts
+        }
     if preset.keep and preset.keep < num_starts:
         return {int(iterations * preset.prune_fraction): None}
     return {}

@@ -108,11 +108,7 @@ class Garment:
     def edge_pairs(self, adjacent: bool = True) -> np.ndarray:
         """``(P, 2)`` edge-index pairs for ``L_inter``; ``adjacent=False`` drops pairs sharing a vertex."""
         n = self.num_vertices
-        pairs = [
-            (a, b)
-            for a, b in combinations(range(n), 2)
-            if adjacent or (b - a) % n not in (1, n - 1)
-        ]
+        pairs = [(a, b) for a, b in combinations(range(n), 2) if adjacent or (b - a) % n not in (1, n - 1)]
         return np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
 
     # ------------------------------------------------------------------ TOML
@@ -278,7 +274,9 @@ def _segments_touch(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarr
     """True when closed segments ``p1p2`` and ``q1q2`` share a point (``tol`` in px² of cross products)."""
     d1, d2 = _cross(q1, q2, p1), _cross(q1, q2, p2)
     d3, d4 = _cross(p1, p2, q1), _cross(p1, p2, q2)
-    if ((d1 > tol and d2 < -tol) or (d1 < -tol and d2 > tol)) and ((d3 > tol and d4 < -tol) or (d3 < -tol and d4 > tol)):
+    if ((d1 > tol and d2 < -tol) or (d1 < -tol and d2 > tol)) and (
+        (d3 > tol and d4 < -tol) or (d3 < -tol and d4 > tol)
+    ):
         return True
 
     def on_segment(a: np.ndarray, b: np.ndarray, p: np.ndarray, d: float) -> bool:
@@ -342,7 +340,9 @@ def _colour(value: object) -> tuple[int, int, int]:
         rgb = [c for c in value]  # type: ignore[union-attr]
     except TypeError:
         raise JeansError(f"colour must be '#rrggbb' or [r, g, b], got {value!r}") from None
-    if len(rgb) != 3 or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c <= 255 for c in rgb):
+    if len(rgb) != 3 or any(
+        isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c <= 255 for c in rgb
+    ):
         raise JeansError(f"colour must be '#rrggbb' or three integers 0..255, got {value!r}")
     return tuple(int(c) for c in rgb)  # type: ignore[return-value]
 

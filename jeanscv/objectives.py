@@ -11,7 +11,7 @@ both work in float64 and agree to rounding, so a fit takes the same path either 
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

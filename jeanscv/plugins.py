@@ -21,7 +21,8 @@ import functools
 import importlib
 import importlib.metadata
 import warnings
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -77,7 +78,7 @@ def _garment_from(entry_point: importlib.metadata.EntryPoint) -> Garment:
     return garment if garment.name == entry_point.name else dataclasses.replace(garment, name=entry_point.name)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _plugin_garments() -> tuple[tuple[str, Garment], ...]:
     found = []
     for entry_point in _entry_points(GARMENT_GROUP, GARMENTS, "garment"):
@@ -88,7 +89,7 @@ def _plugin_garments() -> tuple[tuple[str, Garment], ...]:
     return tuple(found)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _plugin_silhouette_methods() -> tuple[tuple[str, SilhouetteMethod], ...]:
     found = []
     for entry_point in _entry_points(SILHOUETTE_GROUP, BUILTIN_SILHOUETTE_METHODS + ("mask",), "silhouette"):

@@ -110,8 +110,12 @@ PRESETS: dict[str, Preset] = {
             # with 1000, just failing the 16 px check (hockey and rifle photos).
             weights={"upright": 40.0, "center": 1500.0},
             starts=(
-                (0.6, 0.0, 2.0), (0.45, 0.0, 3.0), (0.8, 0.0, 2.0),
-                (0.35, 0.0, 2.0), (0.6, 0.0, 4.0), (0.45, 0.0, 1.5),
+                (0.6, 0.0, 2.0),
+                (0.45, 0.0, 3.0),
+                (0.8, 0.0, 2.0),
+                (0.35, 0.0, 2.0),
+                (0.6, 0.0, 4.0),
+                (0.45, 0.0, 1.5),
             ),
         ),
         description=(
@@ -134,9 +138,21 @@ PRESETS: dict[str, Preset] = {
         # The printed objective is lowest for jeans that balloon over the canvas, so
         # large starts reach lower values than the body-sized ones.
         placements=(
-            (1.2, 0.0), (1.4, 0.0), (1.2, 15.0), (1.2, -15.0), (1.0, 180.0), (1.2, 180.0),
-            (0.8, 0.0), (1.4, 10.0), (1.4, -10.0), (1.6, 0.0), (0.6, 0.0), (0.45, 0.0),
-            (0.6, 90.0), (0.6, -90.0), (0.6, 180.0),
+            (1.2, 0.0),
+            (1.4, 0.0),
+            (1.2, 15.0),
+            (1.2, -15.0),
+            (1.0, 180.0),
+            (1.2, 180.0),
+            (0.8, 0.0),
+            (1.4, 10.0),
+            (1.4, -10.0),
+            (1.6, 0.0),
+            (0.6, 0.0),
+            (0.45, 0.0),
+            (0.6, 90.0),
+            (0.6, -90.0),
+            (0.6, 180.0),
         ),
         description="The paper's printed objective: its weights, all 28 edge pairs in L_inter.",
     ),

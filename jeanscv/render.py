@@ -49,9 +49,7 @@ BAND_COLUMNS = 13
 BAND_LEFT = 6
 
 
-def _cut_at_grid(
-    start: Tensor, end: Tensor, bounds: np.ndarray
-) -> tuple[Tensor, Tensor, Tensor, np.ndarray]:
+def _cut_at_grid(start: Tensor, end: Tensor, bounds: np.ndarray) -> tuple[Tensor, Tensor, Tensor, np.ndarray]:
     """Cut segments ``(M, 2)`` where they cross integer grid lines.
 
     ``bounds``: ``(M, 4)`` ``[x_low, x_high, y_low, y_high]`` limiting which lines
@@ -64,7 +62,11 @@ def _cut_at_grid(
     s = start.detach().cpu().numpy().astype(np.float64)
     e = end.detach().cpu().numpy().astype(np.float64)
     num = len(s)
-    owners, lines, axes = [np.arange(num), np.arange(num)], [np.zeros(num), np.ones(num)], [np.full(num, 2), np.full(num, 2)]
+    owners, lines, axes = (
+        [np.arange(num), np.arange(num)],
+        [np.zeros(num), np.ones(num)],
+        [np.full(num, 2), np.full(num, 2)],
+    )
     for axis in (0, 1):
         first = np.maximum(np.floor(np.minimum(s[:, axis], e[:, axis])) + 1, bounds[:, 2 * axis])
         last = np.minimum(np.ceil(np.maximum(s[:, axis], e[:, axis])) - 1, bounds[:, 2 * axis + 1])
@@ -135,9 +137,7 @@ def _cap_radii(half_width: float, segments: int) -> list[float]:
     return [half_width] + [half_width * scale] * (segments - 1) + [half_width]
 
 
-def stroke_outlines(
-    start: Tensor, end: Tensor, half_width: float = 2.5, cap_segments: int = CAP_SEGMENTS
-) -> Tensor:
+def stroke_outlines(start: Tensor, end: Tensor, half_width: float = 2.5, cap_segments: int = CAP_SEGMENTS) -> Tensor:
     """Capsule outlines of segments: the points within ``half_width`` of each.
 
     Args:
@@ -156,9 +156,7 @@ def stroke_outlines(
     normal = torch.stack([-direction[..., 1], direction[..., 0]], dim=-1)
 
     radii = delta.new_tensor(_cap_radii(half_width, cap_segments))
-    angles = torch.linspace(
-        -math.pi / 2, math.pi / 2, cap_segments + 1, dtype=delta.dtype, device=delta.device
-    )
+    angles = torch.linspace(-math.pi / 2, math.pi / 2, cap_segments + 1, dtype=delta.dtype, device=delta.device)
     cos_r = (torch.cos(angles) * radii)[:, None]
     sin_r = (torch.sin(angles) * radii)[:, None]
     direction, normal = direction[..., None, :], normal[..., None, :]
@@ -334,9 +332,7 @@ def rasterize(
     index = np.concatenate([base, base + local_col, base + local_col + 1])
     values = torch.cat([weight, inside_area - weight, -inside_area])
     band_buffer = num_segments * (plan.rows if strokes is not None else 0) * band_stride
-    diff = values.new_zeros(fill_buffer + band_buffer).index_add(
-        0, torch.as_tensor(index, device=device), values
-    )
+    diff = values.new_zeros(fill_buffer + band_buffer).index_add(0, torch.as_tensor(index, device=device), values)
     winding = None
     if fill_edges is not None:
         winding = torch.cumsum(diff[:fill_buffer].view(num_maps, fill_h, fill_w + 2), dim=-1)[..., :fill_w]
@@ -401,9 +397,7 @@ def stroke_bands(
     return rasterize(strokes=(start, end), canvas_size=(height, width), half_width=half_width)[1]
 
 
-def stroke_coverage(
-    start: Tensor, end: Tensor, height: int = 256, width: int = 256, half_width: float = 2.5
-) -> Tensor:
+def stroke_coverage(start: Tensor, end: Tensor, height: int = 256, width: int = 256, half_width: float = 2.5) -> Tensor:
     """Alpha ``R(e)`` of each segment stroked ``2 * half_width`` px wide, as full maps.
 
     Args:

@@ -7,7 +7,7 @@ averaged down, so ``S`` has anti-aliased edges like the paper's rasterized SVGs.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -104,9 +104,7 @@ def _octopus() -> np.ndarray:
 def _blob(seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     angles = np.linspace(0, 2 * np.pi, 200, endpoint=False)
-    radius = 70 + sum(
-        rng.normal(0, 14 / (k + 1)) * np.cos(k * angles + rng.uniform(0, 2 * np.pi)) for k in range(1, 7)
-    )
+    radius = 70 + sum(rng.normal(0, 14 / (k + 1)) * np.cos(k * angles + rng.uniform(0, 2 * np.pi)) for k in range(1, 7))
     img = _canvas()
     _poly(img, np.stack([128 + radius * np.cos(angles), 128 + radius * np.sin(angles)], axis=1))
     return _finish(img)

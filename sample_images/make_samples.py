@@ -57,8 +57,7 @@ def save_jpeg(name: str, rgb: np.ndarray, exif: Image.Exif | None = None) -> Pat
     img = Image.fromarray(rgb, "RGB")
     for quality in range(JPEG_QUALITY, 60, -4):
         buf = io.BytesIO()
-        img.save(buf, "JPEG", quality=quality, optimize=True,
-                 exif=exif.tobytes() if exif is not None else b"")
+        img.save(buf, "JPEG", quality=quality, optimize=True, exif=exif.tobytes() if exif is not None else b"")
         if buf.tell() <= JPEG_MAX_BYTES:
             break
     path = OUT_DIR / name

@@ -55,6 +55,7 @@ def float64_tensor(array):
 def run_cli():
     """``run_cli(*args)`` -> click ``Result`` of ``jeanscv ARGS`` run in-process (stderr separate)."""
     from click.testing import CliRunner
+
     from jeanscv_cli.main import cli
 
     def run(*args):

@@ -17,8 +17,10 @@ def photo_paths(folder: Path = REAL_PHOTOS) -> list[Path]:
     if not folder.is_dir():
         return []
     return sorted(
-        p for p in folder.iterdir()
-        if p.suffix.lower() in (".jpg", ".jpeg", ".png") and not p.name.endswith(".mask.png")
+        p
+        for p in folder.iterdir()
+        if p.suffix.lower() in (".jpg", ".jpeg", ".png")
+        and not p.name.endswith(".mask.png")
         and (folder / f"{p.stem}.mask.png").is_file()
     )
 

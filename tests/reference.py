@@ -104,9 +104,7 @@ def polygon_coverage_ref(vertices: np.ndarray, height: int, width: int, samples:
     )
 
 
-def capsule_coverage_ref(
-    start, end, height: int, width: int, half_width: float = 2.5, samples: int = 16
-) -> np.ndarray:
+def capsule_coverage_ref(start, end, height: int, width: int, half_width: float = 2.5, samples: int = 16) -> np.ndarray:
     """Point-sampled coverage of ``{p : dist(p, segment) <= half_width}``."""
     start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
     return _coverage_in_box(
@@ -164,7 +162,9 @@ def loss_terms_ref(
         hits = [segment_distance(x, y, vertices[a], vertices[b]) <= half_width for a, b in edges]
         for i, hit in enumerate(hits):
             strokes[i, y0:y1, x0:x1] = pixel_mean(hit.astype(float), samples)
-        union_open[y0:y1, x0:x1] = pixel_mean(np.logical_or.reduce([hits[i] for i in open_edges]).astype(float), samples)
+        union_open[y0:y1, x0:x1] = pixel_mean(
+            np.logical_or.reduce([hits[i] for i in open_edges]).astype(float), samples
+        )
         union_closed[y0:y1, x0:x1] = pixel_mean(
             np.logical_or.reduce([hits[i] for i in closed_edges]).astype(float), samples
         )

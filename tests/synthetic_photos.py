@@ -11,7 +11,7 @@ Arrays: images are ``(H, W, 3) uint8`` RGB, masks ``(H, W) bool`` (True = object
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import cv2
@@ -22,8 +22,18 @@ SHARED_SILHOUETTES = Path(__file__).resolve().parents[2] / "shared" / "silhouett
 
 # skimage.data images bundled with the wheel (no pooch download needed).
 _TEXTURE_NAMES = (
-    "chelsea", "astronaut", "coffee", "grass", "gravel", "brick",
-    "rocket", "camera", "text", "moon", "page", "clock",
+    "chelsea",
+    "astronaut",
+    "coffee",
+    "grass",
+    "gravel",
+    "brick",
+    "rocket",
+    "camera",
+    "text",
+    "moon",
+    "page",
+    "clock",
 )
 
 
@@ -42,7 +52,7 @@ class SyntheticPhoto:
         return f"{self.image.shape[1]}x{self.image.shape[0]}"
 
 
-@lru_cache(maxsize=None)
+@cache
 def _load_texture(name: str) -> np.ndarray | None:
     """The skimage.data image ``name`` as (h, w, 3) uint8, or None if it cannot load offline."""
     try:
@@ -82,11 +92,14 @@ def texture(
         raise RuntimeError(f"texture {name!r} is not available offline")
     h, w = source.shape[:2]
     scale = max(height / h, width / w) * rng.uniform(1.05, 1.4)
-    big = cv2.resize(source, (int(np.ceil(w * scale)), int(np.ceil(h * scale))),
-                     interpolation=cv2.INTER_LINEAR if scale > 1 else cv2.INTER_AREA)
+    big = cv2.resize(
+        source,
+        (int(np.ceil(w * scale)), int(np.ceil(h * scale))),
+        interpolation=cv2.INTER_LINEAR if scale > 1 else cv2.INTER_AREA,
+    )
     y0 = int(rng.integers(0, big.shape[0] - height + 1))
     x0 = int(rng.integers(0, big.shape[1] - width + 1))
-    crop = big[y0:y0 + height, x0:x0 + width].astype(np.float32)
+    crop = big[y0 : y0 + height, x0 : x0 + width].astype(np.float32)
     crop = crop * gain * np.asarray(tint, dtype=np.float32) + offset
     return np.clip(crop, 0, 255).astype(np.uint8)
 
@@ -119,24 +132,41 @@ def animal_mask(
 
     canvas = np.zeros((height, width), np.uint8)
     body_w, body_h = 0.45 * jitter(0.1), 0.2 * jitter(0.15)
-    cv2.ellipse(canvas, pt(0, 0), (int(body_w * unit * 16), int(body_h * unit * 16)),
-                sign * rng.uniform(-8, 8), 0, 360, 255, -1, cv2.LINE_8, 4)
+    cv2.ellipse(
+        canvas,
+        pt(0, 0),
+        (int(body_w * unit * 16), int(body_h * unit * 16)),
+        sign * rng.uniform(-8, 8),
+        0,
+        360,
+        255,
+        -1,
+        cv2.LINE_8,
+        4,
+    )
     head = (0.52 * jitter(0.05), -0.3 * jitter(0.15))
     cv2.line(canvas, pt(0.3, -0.05), pt(*head), 255, thick(0.16 * jitter(0.2)), cv2.LINE_8, 4)
     cv2.circle(canvas, pt(*head), int(0.14 * jitter(0.15) * unit * 16), 255, -1, cv2.LINE_8, 4)
     snout_end = (head[0] + 0.2, head[1] + 0.05)
     cv2.line(canvas, pt(*head), pt(*snout_end), 255, thick(0.12), cv2.LINE_8, 4)
     for dx in (-0.05, 0.06):  # ears
-        ear = np.array([pt(head[0] + dx - 0.05, head[1] - 0.08), pt(head[0] + dx + 0.05, head[1] - 0.08),
-                        pt(head[0] + dx, head[1] - 0.24)], np.int32)
+        ear = np.array(
+            [
+                pt(head[0] + dx - 0.05, head[1] - 0.08),
+                pt(head[0] + dx + 0.05, head[1] - 0.08),
+                pt(head[0] + dx, head[1] - 0.24),
+            ],
+            np.int32,
+        )
         cv2.fillPoly(canvas, [ear], 255, cv2.LINE_8, 4)
     leg_len = 0.45 * jitter(0.15)
     leg_t = 0.085 * jitter(0.15)
     for x in (-0.32, -0.2, 0.2, 0.32):
         foot = (x + rng.uniform(-0.08, 0.08), 0.12 + leg_len)
         cv2.line(canvas, pt(x, 0.08), pt(*foot), 255, thick(leg_t), cv2.LINE_8, 4)
-    tail = np.array([pt(-0.42, -0.05), pt(-0.58, -0.15 - rng.uniform(0, 0.1)),
-                     pt(-0.72, -0.3 - rng.uniform(0, 0.1))], np.int32)
+    tail = np.array(
+        [pt(-0.42, -0.05), pt(-0.58, -0.15 - rng.uniform(0, 0.1)), pt(-0.72, -0.3 - rng.uniform(0, 0.1))], np.int32
+    )
     cv2.polylines(canvas, [tail], False, 255, thick(0.06), cv2.LINE_8, 4)
     return canvas > 0
 
@@ -168,13 +198,17 @@ def blob_mask(
 
 
 def _place(
-    silhouette: np.ndarray, height: int, width: int,
-    center: tuple[float, float], size: float, flip: bool,
+    silhouette: np.ndarray,
+    height: int,
+    width: int,
+    center: tuple[float, float],
+    size: float,
+    flip: bool,
 ) -> np.ndarray:
     """Scale a bool silhouette so its bounding-box height is ``size * height`` and paste it
     centred at ``center`` (fractions), clipping at the frame. Returns (height, width) bool."""
     rows, cols = np.nonzero(silhouette)
-    crop = silhouette[rows.min():rows.max() + 1, cols.min():cols.max() + 1].astype(np.float32)
+    crop = silhouette[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1].astype(np.float32)
     if flip:
         crop = crop[:, ::-1]
     out_h = max(2, int(round(size * height)))
@@ -185,7 +219,7 @@ def _place(
     left = int(round(center[0] * width - out_w / 2))
     y0, y1 = max(top, 0), min(top + out_h, height)
     x0, x1 = max(left, 0), min(left + out_w, width)
-    canvas[y0:y1, x0:x1] = scaled[y0 - top:y1 - top, x0 - left:x1 - left]
+    canvas[y0:y1, x0:x1] = scaled[y0 - top : y1 - top, x0 - left : x1 - left]
     return canvas
 
 
@@ -195,7 +229,13 @@ def horse_mask(height: int, width: int, *, center=(0.5, 0.5), size=0.6, flip=Fal
 
 
 def shared_silhouette_mask(
-    name: str, height: int, width: int, *, center=(0.5, 0.5), size=0.6, flip=False,
+    name: str,
+    height: int,
+    width: int,
+    *,
+    center=(0.5, 0.5),
+    size=0.6,
+    flip=False,
 ) -> np.ndarray | None:
     """Paper silhouette ``NAME.png`` (grey, 255 inside) placed in the frame, or None if absent."""
     path = SHARED_SILHOUETTES / f"{name}.png"
@@ -223,8 +263,7 @@ def compose(
     image = alpha * foreground.astype(np.float32) + (1 - alpha) * background.astype(np.float32)
     image += rng.normal(0.0, noise_sigma, image.shape).astype(np.float32)
     image = np.clip(np.round(image), 0, 255).astype(np.uint8)
-    ok, encoded = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
-                               [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+    ok, encoded = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
     assert ok
     return cv2.cvtColor(cv2.imdecode(encoded, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
 
@@ -233,38 +272,150 @@ def compose(
 # spec, background texture spec, noise sigma). Texture spec: (name, tint, gain, offset).
 _GREEN, _TERRACOTTA, _BLUE, _SAND = (0.55, 1.0, 0.45), (1.15, 0.62, 0.45), (0.5, 0.7, 1.2), (1.1, 0.95, 0.7)
 _CASES = [
-    ("animal_on_grass", "procedural animal, cat fur on grass", (640, 480),
-     ("animal", dict(center=(0.5, 0.52), size=0.75)), ("chelsea", (1, 1, 1), 1.0, 0), ("grass", _GREEN, 0.9, 0), 4),
-    ("horse_on_brick", "skimage horse filled with coffee on brick wall", (800, 600),
-     ("horse", dict(center=(0.45, 0.5), size=0.7)), ("coffee", (1, 1, 1), 1.0, 0), ("brick", _TERRACOTTA, 1.1, 10), 5),
-    ("blob_on_gravel", "astronaut-textured blob on gravel, small image", (400, 300),
-     ("blob", dict(center=(0.55, 0.45), size=0.55)), ("astronaut", (1, 1, 1), 1.0, 0), ("gravel", (1, 1, 1), 1.0, 0), 4),
-    ("dog_on_moon", "paper dog, rocket texture on lunar surface", (1024, 768),
-     ("shared:dog", dict(center=(0.5, 0.5), size=0.55)), ("rocket", _TERRACOTTA, 1.3, 20), ("moon", (1, 1, 1), 1.0, 40), 5),
-    ("balldragon_portrait", "paper balldragon, cat fur on a blue-grey brick wall, portrait", (600, 800),
-     ("shared:balldragon", dict(center=(0.5, 0.45), size=0.5)), ("chelsea", (1, 1, 1), 1.0, 30), ("brick", _BLUE, 0.9, 0), 4),
-    ("small_horse_on_grass", "small horse (about 3% of the frame) on grass", (1200, 900),
-     ("horse", dict(center=(0.3, 0.65), size=0.25, flip=True)), ("brick", _BLUE, 1.3, 0), ("grass", _GREEN, 0.9, 0), 6),
-    ("low_contrast_gravel", "low contrast: darker gravel blob on gravel", (800, 600),
-     ("blob", dict(center=(0.45, 0.55), size=0.6)), ("gravel", (1, 1, 1), 0.7, 0), ("gravel", (1, 1, 1), 1.0, 15), 6),
-    ("low_contrast_moon", "low contrast: moon-textured blob on slightly darker moon", (640, 480),
-     ("blob", dict(center=(0.5, 0.5), size=0.6)), ("moon", (1, 1, 1), 1.0, 28), ("moon", (1, 1, 1), 1.0, 0), 5),
-    ("light_on_dark", "paper-white animal on a dark rock background", (900, 675),
-     ("animal", dict(center=(0.55, 0.5), size=0.6)), ("page", (1, 1, 1), 1.0, 40), ("gravel", (1, 1, 1), 0.45, 0), 4),
-    ("isoluminant_colour", "red brick blob on green grass of the same brightness", (640, 480),
-     ("blob", dict(center=(0.4, 0.5), size=0.5, lobes=3)), ("brick", (1.3, 0.75, 0.6), 1.0, 0), ("grass", (0.8, 1.15, 0.7), 0.95, 0), 4),
-    ("cut_by_border", "large animal whose legs leave the bottom of the frame", (1000, 750),
-     ("animal", dict(center=(0.5, 0.62), size=0.9)), ("coffee", (1.1, 1.0, 0.8), 1.2, 20), ("grass", _GREEN, 0.8, 0), 5),
-    ("big_horse_on_text", "large horse (blue-tinted cameraman photo) on printed text", (1200, 900),
-     ("horse", dict(center=(0.5, 0.5), size=0.8)), ("camera", _BLUE, 0.9, 0), ("text", (1, 1, 1), 1.0, 40), 5),
-    ("person_on_page", "paper person, rocket texture, on a printed page", (700, 700),
-     ("shared:person", dict(center=(0.5, 0.5), size=0.75)), ("rocket", _TERRACOTTA, 1.4, 10), ("page", (1, 1, 1), 1.0, 0), 4),
-    ("vitruvian_on_grass", "paper vitruvian man, sand-tinted brick on grass", (800, 800),
-     ("shared:vitruvian", dict(center=(0.5, 0.5), size=0.8)), ("brick", _SAND, 1.3, 20), ("grass", _GREEN, 0.8, 0), 4),
-    ("grass_blob_on_brick", "grass-textured blob on a grey brick wall, square", (500, 500),
-     ("blob", dict(center=(0.5, 0.5), size=0.55, lobes=4)), ("grass", _GREEN, 1.0, 0), ("brick", (1, 1, 1), 1.0, 0), 4),
-    ("fur_animal_on_text", "terracotta-fur animal on printed text", (960, 720),
-     ("animal", dict(center=(0.45, 0.55), size=0.7)), ("chelsea", _TERRACOTTA, 1.2, 0), ("text", (1, 1, 1), 1.0, 40), 5),
+    (
+        "animal_on_grass",
+        "procedural animal, cat fur on grass",
+        (640, 480),
+        ("animal", dict(center=(0.5, 0.52), size=0.75)),
+        ("chelsea", (1, 1, 1), 1.0, 0),
+        ("grass", _GREEN, 0.9, 0),
+        4,
+    ),
+    (
+        "horse_on_brick",
+        "skimage horse filled with coffee on brick wall",
+        (800, 600),
+        ("horse", dict(center=(0.45, 0.5), size=0.7)),
+        ("coffee", (1, 1, 1), 1.0, 0),
+        ("brick", _TERRACOTTA, 1.1, 10),
+        5,
+    ),
+    (
+        "blob_on_gravel",
+        "astronaut-textured blob on gravel, small image",
+        (400, 300),
+        ("blob", dict(center=(0.55, 0.45), size=0.55)),
+        ("astronaut", (1, 1, 1), 1.0, 0),
+        ("gravel", (1, 1, 1), 1.0, 0),
+        4,
+    ),
+    (
+        "dog_on_moon",
+        "paper dog, rocket texture on lunar surface",
+        (1024, 768),
+        ("shared:dog", dict(center=(0.5, 0.5), size=0.55)),
+        ("rocket", _TERRACOTTA, 1.3, 20),
+        ("moon", (1, 1, 1), 1.0, 40),
+        5,
+    ),
+    (
+        "balldragon_portrait",
+        "paper balldragon, cat fur on a blue-grey brick wall, portrait",
+        (600, 800),
+        ("shared:balldragon", dict(center=(0.5, 0.45), size=0.5)),
+        ("chelsea", (1, 1, 1), 1.0, 30),
+        ("brick", _BLUE, 0.9, 0),
+        4,
+    ),
+    (
+        "small_horse_on_grass",
+        "small horse (about 3% of the frame) on grass",
+        (1200, 900),
+        ("horse", dict(center=(0.3, 0.65), size=0.25, flip=True)),
+        ("brick", _BLUE, 1.3, 0),
+        ("grass", _GREEN, 0.9, 0),
+        6,
+    ),
+    (
+        "low_contrast_gravel",
+        "low contrast: darker gravel blob on gravel",
+        (800, 600),
+        ("blob", dict(center=(0.45, 0.55), size=0.6)),
+        ("gravel", (1, 1, 1), 0.7, 0),
+        ("gravel", (1, 1, 1), 1.0, 15),
+        6,
+    ),
+    (
+        "low_contrast_moon",
+        "low contrast: moon-textured blob on slightly darker moon",
+        (640, 480),
+        ("blob", dict(center=(0.5, 0.5), size=0.6)),
+        ("moon", (1, 1, 1), 1.0, 28),
+        ("moon", (1, 1, 1), 1.0, 0),
+        5,
+    ),
+    (
+        "light_on_dark",
+        "paper-white animal on a dark rock background",
+        (900, 675),
+        ("animal", dict(center=(0.55, 0.5), size=0.6)),
+        ("page", (1, 1, 1), 1.0, 40),
+        ("gravel", (1, 1, 1), 0.45, 0),
+        4,
+    ),
+    (
+        "isoluminant_colour",
+        "red brick blob on green grass of the same brightness",
+        (640, 480),
+        ("blob", dict(center=(0.4, 0.5), size=0.5, lobes=3)),
+        ("brick", (1.3, 0.75, 0.6), 1.0, 0),
+        ("grass", (0.8, 1.15, 0.7), 0.95, 0),
+        4,
+    ),
+    (
+        "cut_by_border",
+        "large animal whose legs leave the bottom of the frame",
+        (1000, 750),
+        ("animal", dict(center=(0.5, 0.62), size=0.9)),
+        ("coffee", (1.1, 1.0, 0.8), 1.2, 20),
+        ("grass", _GREEN, 0.8, 0),
+        5,
+    ),
+    (
+        "big_horse_on_text",
+        "large horse (blue-tinted cameraman photo) on printed text",
+        (1200, 900),
+        ("horse", dict(center=(0.5, 0.5), size=0.8)),
+        ("camera", _BLUE, 0.9, 0),
+        ("text", (1, 1, 1), 1.0, 40),
+        5,
+    ),
+    (
+        "person_on_page",
+        "paper person, rocket texture, on a printed page",
+        (700, 700),
+        ("shared:person", dict(center=(0.5, 0.5), size=0.75)),
+        ("rocket", _TERRACOTTA, 1.4, 10),
+        ("page", (1, 1, 1), 1.0, 0),
+        4,
+    ),
+    (
+        "vitruvian_on_grass",
+        "paper vitruvian man, sand-tinted brick on grass",
+        (800, 800),
+        ("shared:vitruvian", dict(center=(0.5, 0.5), size=0.8)),
+        ("brick", _SAND, 1.3, 20),
+        ("grass", _GREEN, 0.8, 0),
+        4,
+    ),
+    (
+        "grass_blob_on_brick",
+        "grass-textured blob on a grey brick wall, square",
+        (500, 500),
+        ("blob", dict(center=(0.5, 0.5), size=0.55, lobes=4)),
+        ("grass", _GREEN, 1.0, 0),
+        ("brick", (1, 1, 1), 1.0, 0),
+        4,
+    ),
+    (
+        "fur_animal_on_text",
+        "terracotta-fur animal on printed text",
+        (960, 720),
+        ("animal", dict(center=(0.45, 0.55), size=0.7)),
+        ("chelsea", _TERRACOTTA, 1.2, 0),
+        ("text", (1, 1, 1), 1.0, 40),
+        5,
+    ),
 ]
 
 
@@ -284,7 +435,7 @@ def case_names() -> list[str]:
     return [case[0] for case in _CASES]
 
 
-@lru_cache(maxsize=None)
+@cache
 def photo(name: str, seed: int = 2023) -> SyntheticPhoto | None:
     """The case ``name`` rendered with ``seed``, or None if its silhouette or a texture
     is unavailable here (the paper silhouettes live outside the project)."""

@@ -28,8 +28,12 @@ def _png_chunk(kind: bytes, data: bytes) -> bytes:
 def _huge_png_header() -> bytes:
     """A PNG that claims 50000x50000 pixels (header and one tiny chunk of data only)."""
     ihdr = struct.pack(">IIBBBBB", 50000, 50000, 8, 2, 0, 0, 0)
-    return (b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", ihdr)
-            + _png_chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + _png_chunk(b"IEND", b""))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + _png_chunk(b"IHDR", ihdr)
+        + _png_chunk(b"IDAT", zlib.compress(b"\x00" * 64))
+        + _png_chunk(b"IEND", b"")
+    )
 
 
 def _encoded(pixels: np.ndarray, fmt: str) -> bytes:
@@ -53,6 +57,7 @@ _LAUGHS = """<?xml version="1.0"?>
 <svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 256 256"><title>&lol9;</title>
 <path d="M10 10 L200 10 L200 200 Z"/></svg>
 """
+
 
 def _ellipse_photo(scale: float) -> tuple[np.ndarray, np.ndarray]:
     """A 96x128 photo: a noisy red ellipse (semi-axes 64*scale, 48*scale, centre (64, 48))
@@ -94,8 +99,10 @@ BAD_FILES = {
     "tiny.png": (_encoded(np.zeros((1, 1, 3), np.uint8), "PNG"), "too small"),
     "flat.png": (_encoded(np.full((64, 64, 3), 128, np.uint8), "PNG"), "no object found to segment"),
     "nopath.svg": (b'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 256 256"><g/></svg>', "no filled path"),
-    "zeroarea.svg": (b'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 256 256">'
-                     b'<path d="M10 10 L100 100 L200 200 Z"/></svg>', "silhouette is empty"),
+    "zeroarea.svg": (
+        b'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 256 256"><path d="M10 10 L100 100 L200 200 Z"/></svg>',
+        "silhouette is empty",
+    ),
     "laughs.svg": (_LAUGHS.encode(), "entities"),
     "fake.nef": (b"II*\x00" + b"\x00" * 400, "not a readable RAW file"),
     # A red object covering 95% of the frame: only the corners are background.
@@ -339,8 +346,9 @@ def test_16bit_grey_silhouette(tmp_path, run_cli):
 
 def test_animated_gif_uses_the_first_frame(tmp_path, run_cli):
     shape = _person()
-    frames = [Image.fromarray(np.where(np.roll(shape, 8 * k, axis=1), 0, 255).astype(np.uint8)).convert("P")
-              for k in range(3)]
+    frames = [
+        Image.fromarray(np.where(np.roll(shape, 8 * k, axis=1), 0, 255).astype(np.uint8)).convert("P") for k in range(3)
+    ]
     src = tmp_path / "walk.gif"
     frames[0].save(src, save_all=True, append_images=frames[1:], duration=100, loop=0)
     with Image.open(src) as im:
@@ -379,9 +387,15 @@ def test_16bit_and_cmyk_photos(tmp_path, run_cli, kind):
 
 
 # Pillow's Image.transpose that undoes each EXIF orientation (its exif_transpose table).
-_UNDO = {2: Image.Transpose.FLIP_LEFT_RIGHT, 3: Image.Transpose.ROTATE_180, 4: Image.Transpose.FLIP_TOP_BOTTOM,
-         5: Image.Transpose.TRANSPOSE, 6: Image.Transpose.ROTATE_270, 7: Image.Transpose.TRANSVERSE,
-         8: Image.Transpose.ROTATE_90}
+_UNDO = {
+    2: Image.Transpose.FLIP_LEFT_RIGHT,
+    3: Image.Transpose.ROTATE_180,
+    4: Image.Transpose.FLIP_TOP_BOTTOM,
+    5: Image.Transpose.TRANSPOSE,
+    6: Image.Transpose.ROTATE_270,
+    7: Image.Transpose.TRANSVERSE,
+    8: Image.Transpose.ROTATE_90,
+}
 _INVERSE = {2: 2, 3: 3, 4: 4, 5: 5, 6: 8, 7: 7, 8: 6}
 
 
@@ -465,7 +479,10 @@ def test_svg_doctype_with_external_dtd_is_not_fetched(tmp_path, run_cli, no_netw
     assert result.exit_code == 1
     assert result.stderr.splitlines() == [f"jeanscv: {local}: SVG has no filled path"]
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "local.dtd", "local.svg", "standard.jeans.png", "standard.svg"
+        "local.dtd",
+        "local.svg",
+        "standard.jeans.png",
+        "standard.svg",
     ]
 
 

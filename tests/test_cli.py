@@ -16,8 +16,20 @@ from PIL import Image
 
 FAST = ("--iterations", "4", "--starts", "1")
 REPORT_KEYS = {
-    "input", "output", "preset", "iterations", "seed", "canvas_size", "vertices_canvas", "vertices_image",
-    "canvas_to_image", "paper_terms", "paper_total", "objective", "weights", "seconds",
+    "input",
+    "output",
+    "preset",
+    "iterations",
+    "seed",
+    "canvas_size",
+    "vertices_canvas",
+    "vertices_image",
+    "canvas_to_image",
+    "paper_terms",
+    "paper_total",
+    "objective",
+    "weights",
+    "seconds",
 }
 PAPER_TERMS = {"center", "coverage", "rigid", "open", "closed", "inter", "inside"}
 
@@ -139,8 +151,9 @@ def test_svg_sidecar_matches_the_fit(tmp_path, run_cli):
     np.testing.assert_allclose(points, report["vertices_image"], rtol=1e-5)
     # The silhouette outline lies on the mask's edge: its bounding box is the drawing's.
     path = root.find("svg:path", ns).get("d")
-    xy = np.array([[float(v) for v in p.split(",")] for p in path.replace("M", " ").replace("L", " ")
-                   .replace("Z", " ").split()])
+    xy = np.array(
+        [[float(v) for v in p.split(",")] for p in path.replace("M", " ").replace("L", " ").replace("Z", " ").split()]
+    )
     with Image.open(src) as im:
         inside = np.asarray(im.convert("L")) >= 128
     rows, cols = np.nonzero(inside)
@@ -202,8 +215,18 @@ def test_mask_option_and_report(tmp_path, run_cli):
     mask[20:80, 40:90] = 255
     Image.fromarray(photo).save(tmp_path / "noise.png")
     Image.fromarray(mask).save(tmp_path / "mask.png")
-    result = run_cli(tmp_path / "noise.png", "--mask", tmp_path / "mask.png", *FAST, "--json",
-                     "--report", tmp_path / "run.jsonl", "--style", "flat", "-q")
+    result = run_cli(
+        tmp_path / "noise.png",
+        "--mask",
+        tmp_path / "mask.png",
+        *FAST,
+        "--json",
+        "--report",
+        tmp_path / "run.jsonl",
+        "--style",
+        "flat",
+        "-q",
+    )
     assert result.exit_code == 0, result.stderr
     report = _load_report(tmp_path / "noise.jeans.json")
     assert report["kind"] == "photo" and report["silhouette_method"] == "mask"
@@ -222,8 +245,15 @@ def test_mask_option_and_report(tmp_path, run_cli):
 def test_usage_errors_exit_2(tmp_path, run_cli):
     src = write_silhouette_png(tmp_path / "a.png")
     other = write_silhouette_png(tmp_path / "b.png")
-    for args in ([], ["--preset", "nope", src], ["--garment", "ballgown.toml", src], ["--rect", "1,2,3", src],
-                 ["--iterations", "-1", src], ["--format", "bmp", src], ["--mask", src, src, other]):
+    for args in (
+        [],
+        ["--preset", "nope", src],
+        ["--garment", "ballgown.toml", src],
+        ["--rect", "1,2,3", src],
+        ["--iterations", "-1", src],
+        ["--format", "bmp", src],
+        ["--mask", src, src, other],
+    ):
         result = run_cli(*args)
         assert result.exit_code == 2, (args, result.stderr)
         assert "Traceback" not in result.stderr and "Error:" in result.stderr
@@ -254,14 +284,18 @@ def test_version_and_help_do_not_import_heavy_modules():
     for flag in ("--version", "--help"):
         done = subprocess.run(
             [sys.executable, "-X", "importtime", "-m", "jeanscv", flag],
-            capture_output=True, text=True, env=_env(), timeout=60,
+            capture_output=True,
+            text=True,
+            env=_env(),
+            timeout=60,
         )
         assert done.returncode == 0, done.stderr[-2000:]
         imported = {line.split("|")[-1].strip().split(".")[0] for line in done.stderr.splitlines()}
         assert not imported & {"torch", "kornia", "cv2", "rawpy", "skimage", "numpy"}
     assert done.stdout.startswith("Usage: ") and "Examples:" in done.stdout
-    version = subprocess.run([sys.executable, "-m", "jeanscv", "--version"], capture_output=True, text=True,
-                             env=_env(), timeout=60)
+    version = subprocess.run(
+        [sys.executable, "-m", "jeanscv", "--version"], capture_output=True, text=True, env=_env(), timeout=60
+    )
     from jeanscv import __version__
 
     assert version.stdout == f"jeanscv {__version__}\n"
@@ -295,7 +329,7 @@ def test_raw_gives_jpeg_and_rgba_png_keeps_alpha(tmp_path, run_cli):
     # Outside the jeans' bounding box (plus the 2 px margin) every byte, alpha included, is kept.
     xs, ys = np.array(report["vertices_image"]).T
     outside = np.ones(out.shape[:2], bool)
-    outside[max(int(ys.min()) - 3, 0):int(ys.max()) + 4, max(int(xs.min()) - 3, 0):int(xs.max()) + 4] = False
+    outside[max(int(ys.min()) - 3, 0) : int(ys.max()) + 4, max(int(xs.min()) - 3, 0) : int(xs.max()) + 4] = False
     np.testing.assert_array_equal(out[outside], original[outside])
     assert np.sum(out[..., 3] == 0) > 10000  # the transparent background stays transparent
 
@@ -306,7 +340,9 @@ def test_progress_passes_on_a_note_unless_quiet():
     from jeanscv_cli.progress import Progress
     from jeanscv_cli.worker import Outcome
 
-    done = Outcome(0, "in/a.png", "ok", "in/a.jeans.png", seconds=1.0, info={"note": "unsure which thing is the subject"})
+    done = Outcome(
+        0, "in/a.png", "ok", "in/a.jeans.png", seconds=1.0, info={"note": "unsure which thing is the subject"}
+    )
     for quiet, expected in ((False, "jeanscv: in/a.png: note: unsure which thing is the subject\n"), (True, "")):
         stream = io.StringIO()
         Progress(1, quiet=quiet, stream=stream, tty=True).finish(done)

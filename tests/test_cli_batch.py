@@ -55,8 +55,12 @@ def test_folder_tree_is_mirrored_and_errors_listed(tmp_path, run_cli, monkeypatc
     assert result.exit_code == 1
     assert "Traceback" not in result.stderr
     assert _files(tmp_path / "out") == [
-        "a.jeans.json", "a.jeans.png", "sub/b.jeans.json", "sub/b.jeans.png",
-        "sub/deeper/c.jeans.json", "sub/deeper/c.jeans.png",
+        "a.jeans.json",
+        "a.jeans.png",
+        "sub/b.jeans.json",
+        "sub/b.jeans.png",
+        "sub/deeper/c.jeans.json",
+        "sub/deeper/c.jeans.png",
     ]
     for name in ("a", "sub/b", "sub/deeper/c"):
         with Image.open(tmp_path / "out" / f"{name}.jeans.png") as im:
@@ -64,7 +68,9 @@ def test_folder_tree_is_mirrored_and_errors_listed(tmp_path, run_cli, monkeypatc
         report = json.loads((tmp_path / "out" / f"{name}.jeans.json").read_text())
         assert report["output"] == f"out/{name}.jeans.png"
     lines = result.stderr.splitlines()
-    assert re.search(r": 4 inputs, 1 worker \(-j\), device cpu \((fast|torch)\), preset default, 3 iterations$", lines[0])
+    assert re.search(
+        r": 4 inputs, 1 worker \(-j\), device cpu \((fast|torch)\), preset default, 3 iterations$", lines[0]
+    )
     assert [line for line in lines if line.startswith("jeanscv: ")] == [
         "jeanscv: in/sub/corrupt.jpg: truncated or corrupt image"
     ]
@@ -79,8 +85,11 @@ def test_folder_tree_is_mirrored_and_errors_listed(tmp_path, run_cli, monkeypatc
     records = [json.loads(line) for line in (tmp_path / "run.jsonl").read_text().splitlines()]
     by_input = {r["input"]: r for r in records}
     assert {k: r["status"] for k, r in by_input.items()} == {
-        "in/notes.txt": "skipped", "in/a.png": "ok", "in/sub/b.png": "ok",
-        "in/sub/corrupt.jpg": "failed", "in/sub/deeper/c.svg": "ok",
+        "in/notes.txt": "skipped",
+        "in/a.png": "ok",
+        "in/sub/b.png": "ok",
+        "in/sub/corrupt.jpg": "failed",
+        "in/sub/deeper/c.svg": "ok",
     }
     assert by_input["in/sub/corrupt.jpg"]["error"] == "truncated or corrupt image"
     ok = by_input["in/a.png"]
@@ -126,7 +135,11 @@ def test_python_m_jeanscv_with_worker_processes(tmp_path):
     _tree(tmp_path / "in", corrupt=True)
     done = subprocess.run(
         [sys.executable, "-m", "jeanscv", "in", "-r", "-j", "2", "-o", "out", *FAST],
-        cwd=tmp_path, capture_output=True, text=True, env=_env(), timeout=240,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=240,
     )
     assert done.returncode == 1, done.stderr
     assert "Traceback" not in done.stderr
@@ -134,7 +147,8 @@ def test_python_m_jeanscv_with_worker_processes(tmp_path):
     lines = done.stderr.splitlines()
     assert "jeanscv: in/sub/corrupt.jpg: truncated or corrupt image" in lines
     assert sorted(line.split(" (")[0].split("] ")[1] for line in lines if line.startswith("[")) == [
-        "in/a.png -> out/a.jeans.png", "in/sub/b.png -> out/sub/b.jeans.png",
+        "in/a.png -> out/a.jeans.png",
+        "in/sub/b.png -> out/sub/b.jeans.png",
         "in/sub/deeper/c.svg -> out/sub/deeper/c.jeans.png",
     ]
     assert lines[-1].startswith("3 ok, 1 failed, 1 skipped in ")
@@ -148,7 +162,10 @@ def test_interrupt_keeps_finished_outputs_and_no_partial_files(tmp_path, sig, co
         write_silhouette_png(folder / f"s{i:02d}.png", "person")
     process = subprocess.Popen(
         [sys.executable, "-m", "jeanscv", str(folder), "-j", jobs, "--iterations", "60", "--starts", "2"],
-        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=_env(),
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        env=_env(),
         start_new_session=jobs == "1",  # a parent with workers signals only itself, like `kill PID`
     )
     lines = []
@@ -206,7 +223,10 @@ print(default, kept_after_free(), cv2.getNumThreads(), "torch" in sys.modules)
 def test_worker_setup_shares_cores_and_keeps_freed_memory():
     done = subprocess.run(
         [sys.executable, "-c", "import jeanscv.__main__\n" + _WORKER_SETUP, "1"],
-        capture_output=True, text=True, env=_env(), timeout=120,
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=120,
     )
     assert done.returncode == 0, done.stderr
     default, kept, cv2_threads, torch_loaded = done.stdout.split()

@@ -143,9 +143,7 @@ def test_rgba_over_half_transparent_photo() -> None:
     a, below = 0.5, 128 / 255
     over = a + below * (1 - a)
     assert out[2, 1, 3] == round(over * 255)  # 192
-    assert tuple(out[2, 1, :3]) == (
-        round(200 * below * (1 - a) / over), 0, round(255 * a / over)
-    )
+    assert tuple(out[2, 1, :3]) == (round(200 * below * (1 - a) / over), 0, round(255 * a / over))
     assert tuple(out[2, 0]) == (0, 0, 255, 255)
     assert np.array_equal(out[:, 2:], image[:, 2:])
 

@@ -17,9 +17,8 @@ from PIL import Image
 
 from jeanscv.api import apply_jeans
 from jeanscv.distributed import output_paths, run_on_dask
-from jeanscv.io.write import output_extension
 from jeanscv.errors import JeansError
-from jeanscv.io.write import encode_image
+from jeanscv.io.write import encode_image, output_extension
 from jeanscv.synthetic import silhouette_zoo
 
 SHAPES = ["person", "dog", "bottle"]
@@ -67,9 +66,10 @@ def inputs(tmp_path_factory) -> list[Path]:
 @pytest.fixture(scope="module")
 def client():
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster, distributed.Client(cluster) as dask_client:
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        distributed.Client(cluster) as dask_client,
+    ):
         yield dask_client
 
 

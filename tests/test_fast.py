@@ -107,10 +107,15 @@ def test_rasterized_maps_equal_the_torch_rasterizer():
     torch_fill = polygon_coverage(torch.as_tensor(v)[None], 256, 256)[0].numpy()
     np.testing.assert_allclose(_fast.polygon_coverage(v, 256, 256), torch_fill, atol=1e-12)
     start, end = polygon_edges(torch.as_tensor(v))
-    np.testing.assert_allclose(_fast.stroke_coverage(start.numpy(), end.numpy()), stroke_coverage(start, end).numpy(), atol=1e-12)
+    np.testing.assert_allclose(
+        _fast.stroke_coverage(start.numpy(), end.numpy()), stroke_coverage(start, end).numpy(), atol=1e-12
+    )
     # a strip of rows of a wider grid, as the compositor asks for
-    np.testing.assert_allclose(_fast.polygon_coverage(v * 3, 768, 700, top=300, rows=40),
-                               polygon_coverage(torch.as_tensor(v * 3 - [0, 300])[None], 40, 700)[0].numpy(), atol=1e-12)
+    np.testing.assert_allclose(
+        _fast.polygon_coverage(v * 3, 768, 700, top=300, rows=40),
+        polygon_coverage(torch.as_tensor(v * 3 - [0, 300])[None], 40, 700)[0].numpy(),
+        atol=1e-12,
+    )
 
 
 def test_the_blur_equals_kornias():
@@ -202,8 +207,9 @@ def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_start
 def _fresh(code: str) -> str:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env.pop("JEANSCV_BACKEND", None)
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env,
-                          cwd=ROOT, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env, cwd=ROOT, check=True
+    )
     return done.stdout.strip()
 
 
@@ -262,8 +268,9 @@ def test_kernels_cached_looks_for_the_step_loop_index(tmp_path, monkeypatch):
 
 
 def test_command_line_announces_a_first_compilation(tmp_path, run_cli, monkeypatch):
-    import jeanscv._fast
     from conftest import write_silhouette_png
+
+    import jeanscv._fast
 
     source = write_silhouette_png(tmp_path / "shape.png")
     notice = "compiling the fit kernels for this installation, once (about 30 s); later runs load them"

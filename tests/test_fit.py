@@ -7,6 +7,7 @@ import pytest
 import torch
 from conftest import PAPER_SHAPES, SHARED, paper_silhouette
 from PIL import Image
+from reference import loss_terms_ref
 
 from jeanscv.checks import rule_report, self_intersects
 from jeanscv.errors import JeansError
@@ -15,7 +16,6 @@ from jeanscv.garments import JEANS
 from jeanscv.render import polygon_coverage
 from jeanscv.synthetic import ZOO, silhouette_zoo
 
-from reference import loss_terms_ref
 
 @pytest.fixture(scope="module")
 def zoo() -> dict[str, np.ndarray]:
@@ -181,7 +181,9 @@ def test_a_blur_schedule_runs_coarse_to_fine(zoo):
     blurred = _blurred(silhouette, 3.0)
     # Mass is kept (the disc is far from the border) and the edge is softened.
     assert float(blurred.sum()) == pytest.approx(float(silhouette.sum()), rel=1e-4)
-    assert float(((blurred > 0.02) & (blurred < 0.98)).sum()) > 2 * float(((silhouette > 0.02) & (silhouette < 0.98)).sum())
+    assert float(((blurred > 0.02) & (blurred < 0.98)).sum()) > 2 * float(
+        ((silhouette > 0.02) & (silhouette < 0.98)).sum()
+    )
     smooth = dataclasses.replace(get_preset("default"), blur_sigmas=(4.0, 2.0))
     result = fit(zoo["blob_a"], smooth, iterations=60)
     assert rule_report(result.vertices, zoo["blob_a"]).passed

@@ -130,7 +130,9 @@ def test_garments_resolve_by_name_or_path(tmp_path, monkeypatch):
     # A bare file name in the working folder is a path too.
     monkeypatch.chdir(tmp_path)
     assert get_garment("cape.toml").num_vertices == 6
-    with pytest.raises(JeansError, match=r"^unknown garment 'kilt' \(known: jeans, shorts, skirt.*; or a \.toml file\)$"):
+    with pytest.raises(
+        JeansError, match=r"^unknown garment 'kilt' \(known: jeans, shorts, skirt.*; or a \.toml file\)$"
+    ):
         get_garment("kilt")
     with pytest.raises(JeansError, match="cannot read garment file: no such file or directory"):
         get_garment("missing.toml")
@@ -157,7 +159,10 @@ def _polygon(vertices: str) -> str:
 BAD_GARMENTS = [
     ("name = ", "garment file is not valid TOML: "),
     (_toml(vertices=None), "garment is missing the key 'vertices'"),
-    (_toml(colour='"red"'), "unknown garment key(s) colour (allowed: description, draw, name, open_edges, vertices, waist)"),
+    (
+        _toml(colour='"red"'),
+        "unknown garment key(s) colour (allowed: description, draw, name, open_edges, vertices, waist)",
+    ),
     (_toml(name='"my jeans"'), "garment name must be letters, digits"),
     (_toml(name="3"), "garment name must be letters, digits"),
     (_toml(description="5"), "garment description must be a string"),
@@ -184,13 +189,22 @@ BAD_GARMENTS = [
     # A bow tie: edges 0 and 2 cross.
     (_polygon("[[10, 10], [50, 50], [50, 10], [10, 50]]"), "the garment polygon intersects itself (edges 0 and 2)"),
     # Vertex 3 lies on edge 0: edges 0 and 2 touch without crossing.
-    (_polygon("[[10, 10], [50, 10], [50, 50], [30, 10], [10, 50]]"), "the garment polygon intersects itself (edges 0 and 2)"),
+    (
+        _polygon("[[10, 10], [50, 10], [50, 50], [30, 10], [10, 50]]"),
+        "the garment polygon intersects itself (edges 0 and 2)",
+    ),
     # A spike: edge 1 runs up to y = 50 and edge 2 folds back down along it.
-    (_polygon("[[10, 10], [30, 10], [30, 50], [30, 20], [10, 40]]"), "the garment polygon intersects itself (edges 1 and 2)"),
+    (
+        _polygon("[[10, 10], [30, 10], [30, 50], [30, 20], [10, 40]]"),
+        "the garment polygon intersects itself (edges 1 and 2)",
+    ),
     (_toml(draw='[draw]\nstyle = "fancy"\n'), "unknown draw style 'fancy' (use jeans, shorts, skirt, plain)"),
     (_toml(draw='[draw]\ncolour = "#12345"\n'), "colour must be '#rrggbb' or [r, g, b], got '#12345'"),
-    (_toml(draw="[draw]\ncolour = [1, 2, 300]\n"), "colour must be '#rrggbb' or three integers 0..255, got [1, 2, 300]"),
-    (_toml(draw='[draw]\nlinewidth = 2\n'), "unknown [draw] key(s) linewidth (allowed: style, colour)"),
+    (
+        _toml(draw="[draw]\ncolour = [1, 2, 300]\n"),
+        "colour must be '#rrggbb' or three integers 0..255, got [1, 2, 300]",
+    ),
+    (_toml(draw="[draw]\nlinewidth = 2\n"), "unknown [draw] key(s) linewidth (allowed: style, colour)"),
     (_toml(draw="draw = 3\n"), "[draw] must be a table"),
 ]
 
@@ -228,4 +242,3 @@ def test_garments_built_in_python_are_validated_too():
     square = Garment("square", [[10, 10], [10, 50], [50, 50], [50, 10]], [3, 1], [1, 2])
     assert square.template.dtype == np.float64 and square.open_edges == (1, 3) and square.waist == (1, 2)
     assert square.style == "plain"
-

@@ -430,7 +430,11 @@ def test_rawpy_is_not_imported_with_the_module() -> None:
     code = "import sys, jeanscv.io.image; print('rawpy' in sys.modules, 'cv2' in sys.modules)"
     root = str(Path(__file__).resolve().parents[1])
     result = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root,
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=root,
         env={**os.environ, "PYTHONPATH": root},
     )
     assert result.stdout.split() == ["False", "False"]
@@ -453,8 +457,7 @@ def test_16bit_colour_tiff_and_png_with_orientation(tmp_path: Path, orientation:
 
     stored = corner_pattern().astype(np.uint16) * 257
     stored[:8, :8] = [65280, 0, 0]  # red that rounds to 254 (Pillow's high byte says 255)
-    tifffile.imwrite(tmp_path / "deep.tif", stored, photometric="rgb",
-                     extratags=[(274, "H", 1, orientation, True)])
+    tifffile.imwrite(tmp_path / "deep.tif", stored, photometric="rgb", extratags=[(274, "H", 1, orientation, True)])
     cv2.imwrite(str(tmp_path / "plain.png"), np.ascontiguousarray(stored[..., ::-1]))
     png = (tmp_path / "plain.png").read_bytes()
     exif = Image.Exif()

@@ -109,7 +109,12 @@ def test_bad_format_and_quality() -> None:
 
 def test_format_from_extension(tmp_path: Path) -> None:
     assert [format_for_path(f"a{ext}") for ext in (".PNG", ".jpg", ".jpeg", ".webp", ".tif", ".tiff")] == [
-        "PNG", "JPEG", "JPEG", "WEBP", "TIFF", "TIFF"
+        "PNG",
+        "JPEG",
+        "JPEG",
+        "WEBP",
+        "TIFF",
+        "TIFF",
     ]
     with pytest.raises(JeansError, match=r"extension '\.bmp'"):
         write_image(tmp_path / "out.bmp", gradient_rgba())

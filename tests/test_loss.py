@@ -10,6 +10,7 @@ import pytest
 import torch
 from conftest import PAPER_SHAPES, paper_silhouette
 from conftest import float64_tensor as _t
+from reference import loss_terms_ref, rigid_ref
 
 from jeanscv.errors import JeansError
 from jeanscv.garments import JEANS, Garment
@@ -23,11 +24,8 @@ from jeanscv.loss import (
 )
 from jeanscv.synthetic import silhouette_zoo
 
-from reference import loss_terms_ref, rigid_ref
-
 TERMS = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
 F64 = torch.float64
-
 
 
 def _terms(vertices, silhouette, **kwargs) -> dict[str, float]:
@@ -411,9 +409,16 @@ def _turned(degrees: float, scale: tuple[float, float] = (1.0, 1.0)) -> np.ndarr
 
 @pytest.mark.parametrize(
     "degrees, expected",
-    [(0, 0.0), (15, 0.0), (-20, 0.0), (30, np.cos(np.radians(20)) - np.cos(np.radians(30))),
-     (45, np.cos(np.radians(20)) - np.cos(np.radians(45))), (60, np.cos(np.radians(20)) - 0.5),
-     (90, np.cos(np.radians(20)) - 0.5), (180, np.cos(np.radians(20)) - 0.5)],
+    [
+        (0, 0.0),
+        (15, 0.0),
+        (-20, 0.0),
+        (30, np.cos(np.radians(20)) - np.cos(np.radians(30))),
+        (45, np.cos(np.radians(20)) - np.cos(np.radians(45))),
+        (60, np.cos(np.radians(20)) - 0.5),
+        (90, np.cos(np.radians(20)) - 0.5),
+        (180, np.cos(np.radians(20)) - 0.5),
+    ],
 )
 def test_upright_term_of_a_turned_template(degrees: float, expected: float) -> None:
     """c = cos(turn) for a rigidly turned garment; stretching it (squat, wide jeans) changes nothing."""

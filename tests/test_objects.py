@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import json
-from functools import lru_cache
+from functools import cache
 
 import cv2
 import numpy as np
@@ -23,7 +23,7 @@ FIT = dict(iterations=40, starts=4)
 CLI_FIT = ("--iterations", "40", "--starts", "4")
 
 
-@lru_cache(maxsize=None)
+@cache
 def scene():
     return two_objects()
 

@@ -22,8 +22,22 @@ def synthetic_photo(height: int = 300, width: int = 400) -> tuple[np.ndarray, np
     mask = np.zeros((height, width), bool)
     small = np.asarray(Image.fromarray((shape * 255).astype(np.uint8)).resize((height, height))) >= 128
     mask[:, (width - height) // 2 : (width - height) // 2 + height] = small
-    ground = np.stack([60 + 20 * rng.random((height, width)), 150 + 30 * rng.random((height, width)), 50 + 20 * rng.random((height, width))], -1)
-    fur = np.stack([150 + 30 * rng.random((height, width)), 100 + 20 * rng.random((height, width)), 60 + 20 * rng.random((height, width))], -1)
+    ground = np.stack(
+        [
+            60 + 20 * rng.random((height, width)),
+            150 + 30 * rng.random((height, width)),
+            50 + 20 * rng.random((height, width)),
+        ],
+        -1,
+    )
+    fur = np.stack(
+        [
+            150 + 30 * rng.random((height, width)),
+            100 + 20 * rng.random((height, width)),
+            60 + 20 * rng.random((height, width)),
+        ],
+        -1,
+    )
     photo = np.where(mask[..., None], fur, ground).astype(np.uint8)
     return photo, mask
 

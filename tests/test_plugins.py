@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = "jeanscv_plugin_example"
 
 #: A second, deliberately broken distribution: each entry point fails differently.
-BROKEN_MODULE = '''
+BROKEN_MODULE = """
 import numpy as np
 
 def raises(image, **options):
@@ -58,7 +58,7 @@ NOT_CALLABLE = 3
 
 def not_a_garment():
     return "jeans"
-'''
+"""
 BROKEN_ENTRY_POINTS = {
     "jeanscv.garments": {
         "missing_module": "jeanscv_no_such_module:thing",
@@ -83,7 +83,10 @@ def write_distribution(site: Path, name: str, version: str, entry_points: dict[s
     info.mkdir(parents=True)
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n")
     (info / "entry_points.txt").write_text(
-        "".join(f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) + "\n" for group, eps in entry_points.items())
+        "".join(
+            f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) + "\n"
+            for group, eps in entry_points.items()
+        )
     )
 
 
@@ -181,8 +184,20 @@ def test_broken_plugins_are_skipped_with_a_warning(site):
     messages = sorted(str(w.message) for w in caught)
     assert list(garments) == ["jeans", "shorts", "skirt", "cape"]
     assert garments["jeans"] is GARMENTS["jeans"]
-    assert sorted(methods) == sorted(["auto", "alpha", "threshold", "grabcut", "everything_dark",
-                                      "raises", "wrong_shape", "not_a_mask", "gives_nan", "half"])
+    assert sorted(methods) == sorted(
+        [
+            "auto",
+            "alpha",
+            "threshold",
+            "grabcut",
+            "everything_dark",
+            "raises",
+            "wrong_shape",
+            "not_a_mask",
+            "gives_nan",
+            "half",
+        ]
+    )
     expected = [
         "jeanscv: skipping garment plugin 'jeans' (broken-plugin 0.1): a built-in has that name",
         "jeanscv: skipping garment plugin 'missing_module' (broken-plugin 0.1): ModuleNotFoundError: No module named 'jeanscv_no_such_module'",
@@ -228,9 +243,23 @@ def test_pip_installs_the_example_with_the_same_entry_points(tmp_path):
     shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info"))
     target = tmp_path / "target"
     out = subprocess.run(
-        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--no-index",
-         "--disable-pip-version-check", "--target", str(target), str(source)],
-        capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "--no-index",
+            "--disable-pip-version-check",
+            "--target",
+            str(target),
+            str(source),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert out.returncode == 0, out.stderr
     (installed,) = target.glob("jeanscv_plugin_example-0.1.0.dist-info")
@@ -261,8 +290,20 @@ def test_the_cli_offers_and_uses_plugin_garments_and_extractors(site, tmp_path):
     assert listed.returncode == 0, listed.stderr
     assert "cape:" in listed.stdout
     out = tmp_path / "out"
-    run = jeanscv(str(photo), "-o", str(out), "--kind", "photo", "--garment", "cape",
-                  "--silhouette", "everything_dark", "--iterations", "5", "--json")
+    run = jeanscv(
+        str(photo),
+        "-o",
+        str(out),
+        "--kind",
+        "photo",
+        "--garment",
+        "cape",
+        "--silhouette",
+        "everything_dark",
+        "--iterations",
+        "5",
+        "--json",
+    )
     assert run.returncode == 0, run.stderr
     report = json.loads((out / "square.jeans.json").read_text())
     assert report["garment"] == "cape" and report["silhouette_method"] == "everything_dark"

@@ -21,9 +21,24 @@ from jeanscv.silhouette.photo import segment
 # 0.47, im_21 0.90, im_27 0.31, lamp2_meitu_1 0.91, long 0.71, rifle1 0.65, rifle2 0.73,
 # sailboat3 0.94, vangogh 0.74, whisk 0.85.
 FLOORS = {
-    "0002-01": 0.80, "0003": 0.85, "bike": 0.42, "boat": 0.72, "girl": 0.55, "hockey": 0.05,
-    "horse": 0.85, "im_01": 0.68, "im_14": 0.40, "im_21": 0.85, "im_27": 0.20, "lamp2_meitu_1": 0.85,
-    "long": 0.65, "rifle1": 0.58, "rifle2": 0.65, "sailboat3": 0.85, "vangogh": 0.68, "whisk": 0.80,
+    "0002-01": 0.80,
+    "0003": 0.85,
+    "bike": 0.42,
+    "boat": 0.72,
+    "girl": 0.55,
+    "hockey": 0.05,
+    "horse": 0.85,
+    "im_01": 0.68,
+    "im_14": 0.40,
+    "im_21": 0.85,
+    "im_27": 0.20,
+    "lamp2_meitu_1": 0.85,
+    "long": 0.65,
+    "rifle1": 0.58,
+    "rifle2": 0.65,
+    "sailboat3": 0.85,
+    "vangogh": 0.68,
+    "whisk": 0.80,
 }
 MEAN_FLOOR = 0.65
 

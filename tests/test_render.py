@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import torch
 from conftest import float64_tensor as _t
+from reference import capsule_coverage_ref, polygon_coverage_ref
 
 from jeanscv.render import (
     PolygonRasterizer,
@@ -25,12 +26,9 @@ from jeanscv.render import (
     winding_integral,
 )
 
-from reference import capsule_coverage_ref, polygon_coverage_ref
-
 # A non-square canvas, so that a swapped height/width shows up.
 H, W = 44, 56
 F64 = torch.float64
-
 
 
 def _off_grid(points: np.ndarray, gap: float = 1e-3) -> np.ndarray:
@@ -265,9 +263,7 @@ def test_stroke_bands_hold_the_whole_stroke() -> None:
         assert torch.all(bands.alpha[i][~inside] == 0)
         ref_map = capsule_coverage_ref(starts[i], ends[i], H, W)
         assert bands.alpha[i].sum().item() == pytest.approx(ref_map.sum(), rel=5e-3, abs=0.05)
-        torch.testing.assert_close(
-            maps[i].reshape(-1)[flat], bands.alpha[i][inside], atol=1e-12, rtol=0
-        )
+        torch.testing.assert_close(maps[i].reshape(-1)[flat], bands.alpha[i][inside], atol=1e-12, rtol=0)
 
 
 def test_rasterize_fill_and_strokes_in_one_pass() -> None:

@@ -14,8 +14,9 @@ def _graph(labels: np.ndarray) -> SuperpixelGraph:
     """A graph over hand-made labels (colours and edges are not used by focus)."""
     count = int(labels.max()) + 1
     area = np.bincount(labels.ravel(), minlength=count).astype(np.float64)
-    return SuperpixelGraph(labels, np.zeros((count, 3)), np.zeros((count, 2)), area, np.zeros((count, 4), bool),
-                           np.zeros((0, 2), int))
+    return SuperpixelGraph(
+        labels, np.zeros((count, 3)), np.zeros((count, 2)), area, np.zeros((count, 4), bool), np.zeros((0, 2), int)
+    )
 
 
 def test_focus_is_mean_detail_over_its_95th_percentile():

@@ -8,10 +8,10 @@ import time
 
 import numpy as np
 import pytest
+from synthetic_photos import case_names, iou, photo
 
 from jeanscv.errors import JeansError
 from jeanscv.silhouette.photo import Segmentation, clean_mask, segment
-from synthetic_photos import case_names, iou, photo
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -23,7 +23,7 @@ def _two_tone(mask: np.ndarray, inside: int, outside: int) -> np.ndarray:
 
 def _rect_mask(shape, top, left, height, width) -> np.ndarray:
     mask = np.zeros(shape, bool)
-    mask[top:top + height, left:left + width] = True
+    mask[top : top + height, left : left + width] = True
     return mask
 
 
@@ -407,7 +407,9 @@ def test_horizon_bands_are_out_of_the_running_unless_all_are_bands():
     band_too[9, :] = True
     subject = np.zeros((20, 40), bool)
     subject[10:16, 15:25] = True
-    winner, ranked = choose({"a": band, "b": band_too, "subject": subject}, lambda _: {"contrast": 1.0, "agreement": 1.0})
+    winner, ranked = choose(
+        {"a": band, "b": band_too, "subject": subject}, lambda _: {"contrast": 1.0, "agreement": 1.0}
+    )
     assert winner == "subject"
     assert [c.band for c in ranked] == [False, True, True]
     assert ranked[0].consensus == 1.0 and ranked[1].score == 0.0

@@ -25,7 +25,6 @@ from jeanscv.io.svg import (
 )
 
 
-
 def svg(body: str, root: str = 'viewBox="0 0 256 256"') -> bytes:
     return f'<svg xmlns="http://www.w3.org/2000/svg" {root}>{body}</svg>'.encode()
 
@@ -46,6 +45,7 @@ def path_svg(d: str, extra: str = "") -> str:
 
 # ----------------------------------------------------------------- exact masks
 
+
 def test_rect_on_pixel_boundaries_is_exactly_zero_one():
     result = read_svg_silhouette_from_bytes(svg('<rect x="10" y="20" width="30" height="40"/>'))
     assert isinstance(result, SvgSilhouette)
@@ -56,8 +56,7 @@ def test_rect_on_pixel_boundaries_is_exactly_zero_one():
 
 
 def test_path_rect_equals_rect_element():
-    np.testing.assert_array_equal(alpha_of(path_svg("M10 20H40V60H10Z")),
-                                  box(slice(20, 60), slice(10, 40)))
+    np.testing.assert_array_equal(alpha_of(path_svg("M10 20H40V60H10Z")), box(slice(20, 60), slice(10, 40)))
 
 
 def test_rect_at_half_pixels_has_exactly_half_coverage_on_its_border():
@@ -102,8 +101,10 @@ def test_nonzero_cuts_reversed_inner_square():
     np.testing.assert_array_equal(alpha_of(path_svg(OUTER + INNER_REVERSED)), HOLE)
 
 
-@pytest.mark.parametrize("extra", ['fill-rule="evenodd"', 'style="fill-rule: evenodd"',
-                                   'fill-rule="nonzero" style="fill:red;fill-rule:evenodd"'])
+@pytest.mark.parametrize(
+    "extra",
+    ['fill-rule="evenodd"', 'style="fill-rule: evenodd"', 'fill-rule="nonzero" style="fill:red;fill-rule:evenodd"'],
+)
 def test_evenodd_cuts_same_direction_inner_square(extra):
     np.testing.assert_array_equal(alpha_of(path_svg(OUTER + INNER_SAME, extra)), HOLE)
 
@@ -138,8 +139,7 @@ def test_scanline_matches_brute_force_winding_on_random_self_intersecting_polygo
     rng = np.random.default_rng(seed)
     polygon = rng.uniform(1, 31, size=(12, 2))
     d = "M" + " ".join(f"{float(x)!r} {float(y)!r}" for x, y in polygon) + "Z"
-    alpha = alpha_of(path_svg(d, f'fill-rule="{rule}"'), 'viewBox="0 0 32 32"',
-                     canvas_size=32, supersample=2)
+    alpha = alpha_of(path_svg(d, f'fill-rule="{rule}"'), 'viewBox="0 0 32 32"', canvas_size=32, supersample=2)
     centres = (np.arange(64) + 0.5) / 2
     xs, ys = np.meshgrid(centres, centres)
     winding = brute_force_winding(polygon, np.c_[xs.ravel(), ys.ravel()]).reshape(64, 64)
@@ -149,6 +149,7 @@ def test_scanline_matches_brute_force_winding_on_random_self_intersecting_polygo
 
 
 # ------------------------------------------------------------- curves and arcs
+
 
 def test_circle_area_matches_pi_r_squared():
     alpha = alpha_of('<circle cx="128" cy="128" r="100"/>')
@@ -163,8 +164,9 @@ def test_ellipse_area():
 
 def test_four_quarter_arcs_match_circle_element():
     circle = alpha_of('<circle cx="128" cy="128" r="100"/>')
-    arcs = alpha_of(path_svg("M228 128A100 100 0 0 1 128 228A100 100 0 0 1 28 128"
-                             "A100 100 0 0 1 128 28A100 100 0 0 1 228 128Z"))
+    arcs = alpha_of(
+        path_svg("M228 128A100 100 0 0 1 128 228A100 100 0 0 1 28 128A100 100 0 0 1 128 28A100 100 0 0 1 228 128Z")
+    )
     assert np.abs(arcs - circle).mean() < 1e-4
     assert np.abs(arcs - circle).max() <= 2 / 16
 
@@ -176,11 +178,9 @@ def test_arc_radii_too_small_are_scaled_up_to_reach_the_endpoint():
 
 
 def test_rotated_arc_matches_rotated_ellipse_element():
-    ellipse = alpha_of('<ellipse cx="128" cy="128" rx="100" ry="50" '
-                       'transform="rotate(30 128 128)"/>')
+    ellipse = alpha_of('<ellipse cx="128" cy="128" rx="100" ry="50" transform="rotate(30 128 128)"/>')
     c, s = 100 * math.cos(math.radians(30)), 100 * math.sin(math.radians(30))
-    d = (f"M{128 + c} {128 + s}A100 50 30 1 1 {128 - c} {128 - s}"
-         f"A100 50 30 1 1 {128 + c} {128 + s}Z")
+    d = f"M{128 + c} {128 + s}A100 50 30 1 1 {128 - c} {128 - s}A100 50 30 1 1 {128 + c} {128 + s}Z"
     arcs = alpha_of(path_svg(d))
     assert np.abs(arcs - ellipse).mean() < 3e-4  # measured 1.1e-4: different flattening
     assert abs(arcs.sum() / (math.pi * 100 * 50) - 1) < 0.005
@@ -216,6 +216,7 @@ def test_flattening_tolerance_is_respected():
 
 # ------------------------------------------------------------------- path syntax
 
+
 def test_number_syntax():
     (points,) = flatten_path_data("M1.5.5L-1-2 1e-3 0z")
     np.testing.assert_array_equal(points, [[1.5, 0.5], [-1, -2], [0.001, 0]])
@@ -225,8 +226,14 @@ def test_number_syntax():
 
 def test_implicit_repeated_commands():
     expected = flatten_path_data("M0 0L10 0L10 10L0 10Z")
-    for d in ["M0 0 10 0 10 10 0 10z", "M0,0,10,0,10,10,0,10z", "m0 0 10 0 0 10-10 0z",
-              "M0 0H10V10H0Z", "M0 0h10v10h-10z", "M0 0 L10 0 10 10 0 10"]:
+    for d in [
+        "M0 0 10 0 10 10 0 10z",
+        "M0,0,10,0,10,10,0,10z",
+        "m0 0 10 0 0 10-10 0z",
+        "M0 0H10V10H0Z",
+        "M0 0h10v10h-10z",
+        "M0 0 L10 0 10 10 0 10",
+    ]:
         (points,) = flatten_path_data(d)
         np.testing.assert_array_equal(points, expected[0])
 
@@ -249,10 +256,8 @@ def test_subpaths_and_moves_after_close():
     np.testing.assert_array_equal(polys[2], [[15, 15], [16, 15], [16, 16]])
 
 
-ABSOLUTE = ("M40 40L120 40H200V120C200 160 180 200 140 200S80 180 60 160Q40 140 50 120"
-            "T40 80A20 20 0 0 1 40 40Z")
-RELATIVE = ("m40 40l80 0h80v80c0 40-20 80-60 80s-60-20-80-40q-20-20-10-40"
-            "t-10-40a20 20 0 0 1 0-40z")
+ABSOLUTE = "M40 40L120 40H200V120C200 160 180 200 140 200S80 180 60 160Q40 140 50 120T40 80A20 20 0 0 1 40 40Z"
+RELATIVE = "m40 40l80 0h80v80c0 40-20 80-60 80s-60-20-80-40q-20-20-10-40t-10-40a20 20 0 0 1 0-40z"
 
 
 def test_relative_and_absolute_commands_agree():
@@ -276,6 +281,7 @@ def test_smooth_commands_reflect_the_previous_control_point():
 
 
 # ------------------------------------------------------------------- transforms
+
 
 def test_group_and_element_transforms_compose():
     body = '<g transform="translate(10,20)"><rect width="30" height="40" transform="scale(2)"/></g>'
@@ -310,61 +316,60 @@ def test_skew_keeps_area_and_shears(skew):
 
 # ---------------------------------------------------------------------- framing
 
+
 def test_non_square_viewbox_is_fitted_and_centred():
-    result = read_svg_silhouette_from_bytes(
-        svg('<rect width="100" height="50"/>', 'viewBox="0 0 100 50" width="7cm"'))
+    result = read_svg_silhouette_from_bytes(svg('<rect width="100" height="50"/>', 'viewBox="0 0 100 50" width="7cm"'))
     np.testing.assert_array_equal(result.alpha, box(slice(64, 192), slice(0, 256)))
     assert (result.width, result.height) == (100.0, 50.0)
     np.testing.assert_allclose(result.canvas_to_image, [[100 / 256, 0, 0], [0, 100 / 256, -25]])
-    np.testing.assert_allclose(apply_affine(result.canvas_to_image, [[0, 64], [256, 192]]),
-                               [[0, 0], [100, 50]])
+    np.testing.assert_allclose(apply_affine(result.canvas_to_image, [[0, 64], [256, 192]]), [[0, 0], [100, 50]])
 
 
 def test_viewbox_with_offset_origin():
-    result = read_svg_silhouette_from_bytes(
-        svg('<circle r="50"/>', 'viewBox="-50 -50 100 100"'))
-    np.testing.assert_allclose(result.canvas_to_image,
-                               [[100 / 256, 0, -50], [0, 100 / 256, -50]])
+    result = read_svg_silhouette_from_bytes(svg('<circle r="50"/>', 'viewBox="-50 -50 100 100"'))
+    np.testing.assert_allclose(result.canvas_to_image, [[100 / 256, 0, -50], [0, 100 / 256, -50]])
     assert abs(result.alpha.sum() / (math.pi * 128**2) - 1) < 0.005
     assert result.alpha[128, 128] == 1
 
 
 def test_width_and_height_without_viewbox():
-    result = read_svg_silhouette_from_bytes(
-        svg('<rect width="128" height="64"/>', 'width="128" height="64px"'))
+    result = read_svg_silhouette_from_bytes(svg('<rect width="128" height="64"/>', 'width="128" height="64px"'))
     np.testing.assert_array_equal(result.alpha, box(slice(64, 192), slice(0, 256)))
     assert (result.width, result.height) == (128.0, 64.0)
-    inches = read_svg_silhouette_from_bytes(
-        svg('<rect width="48" height="96"/>', 'width="1in" height="1in"'))
+    inches = read_svg_silhouette_from_bytes(svg('<rect width="48" height="96"/>', 'width="1in" height="1in"'))
     np.testing.assert_array_equal(inches.alpha, box(slice(0, 256), slice(0, 128)))
 
 
 def test_nested_svg_viewport():
-    body = ('<svg x="100" y="50" width="20" height="20" viewBox="0 0 10 10">'
-            '<rect width="10" height="5"/></svg>')
+    body = '<svg x="100" y="50" width="20" height="20" viewBox="0 0 10 10"><rect width="10" height="5"/></svg>'
     np.testing.assert_array_equal(alpha_of(body), box(slice(50, 60), slice(100, 120)))
 
 
 # --------------------------------------------------------------- which elements
 
+
 def test_unfilled_hidden_and_non_rendered_elements_are_skipped():
-    body = (path_svg("M0 0H100V100H0Z", 'fill="none" stroke="black"')
-            + '<g fill="none"><rect width="50" height="50"/></g>'
-            + '<rect width="60" height="60" style="display:none"/>'
-            + '<rect width="70" height="70" visibility="hidden"/>'
-            + '<rect width="80" height="80" fill-opacity="0"/>'
-            + '<g opacity="0"><rect width="90" height="90"/></g>'
-            + '<defs><rect width="200" height="200"/></defs>'
-            + '<clipPath><rect width="200" height="200"/></clipPath>'
-            + '<g fill="none"><rect x="200" y="200" width="10" height="10" fill="#000"/></g>')
+    body = (
+        path_svg("M0 0H100V100H0Z", 'fill="none" stroke="black"')
+        + '<g fill="none"><rect width="50" height="50"/></g>'
+        + '<rect width="60" height="60" style="display:none"/>'
+        + '<rect width="70" height="70" visibility="hidden"/>'
+        + '<rect width="80" height="80" fill-opacity="0"/>'
+        + '<g opacity="0"><rect width="90" height="90"/></g>'
+        + '<defs><rect width="200" height="200"/></defs>'
+        + '<clipPath><rect width="200" height="200"/></clipPath>'
+        + '<g fill="none"><rect x="200" y="200" width="10" height="10" fill="#000"/></g>'
+    )
     np.testing.assert_array_equal(alpha_of(body), box(slice(200, 210), slice(200, 210)))
 
 
 def test_white_fills_are_background_and_percentages_resolve():
-    body = ('<rect width="100%" height="100%" fill="white"/>'
-            '<rect x="25%" y="50%" width="50%" height="10" style="fill:#000"/>'
-            '<g fill="#FFFFFF"><rect width="5" height="5"/>'
-            '<rect x="200" y="200" width="5" height="5" fill="rgb(20,20,20)"/></g>')
+    body = (
+        '<rect width="100%" height="100%" fill="white"/>'
+        '<rect x="25%" y="50%" width="50%" height="10" style="fill:#000"/>'
+        '<g fill="#FFFFFF"><rect width="5" height="5"/>'
+        '<rect x="200" y="200" width="5" height="5" fill="rgb(20,20,20)"/></g>'
+    )
     expected = box(slice(128, 138), slice(64, 192)) + box(slice(200, 205), slice(200, 205))
     np.testing.assert_array_equal(alpha_of(body), expected)
     with pytest.raises(JeansError, match="SVG has no filled path"):
@@ -372,11 +377,13 @@ def test_white_fills_are_background_and_percentages_resolve():
 
 
 def test_polygon_polyline_rounded_rect_and_use():
-    body = ('<polygon points="0,0 10,0 10,10 0,10"/>'
-            '<polyline points="20 0 30 0 30 10 20 10"/>'
-            '<defs><rect id="r" width="10" height="10"/></defs>'
-            '<use href="#r" x="40"/><use xlink:href="#r" x="60" '
-            'xmlns:xlink="http://www.w3.org/1999/xlink"/>')
+    body = (
+        '<polygon points="0,0 10,0 10,10 0,10"/>'
+        '<polyline points="20 0 30 0 30 10 20 10"/>'
+        '<defs><rect id="r" width="10" height="10"/></defs>'
+        '<use href="#r" x="40"/><use xlink:href="#r" x="60" '
+        'xmlns:xlink="http://www.w3.org/1999/xlink"/>'
+    )
     expected = sum(box(slice(0, 10), slice(x, x + 10)) for x in (0, 20, 40, 60))
     np.testing.assert_array_equal(alpha_of(body), expected)
     rounded = alpha_of('<rect x="28" y="28" width="200" height="200" rx="50"/>')
@@ -394,15 +401,16 @@ def test_svgz_and_file_reading(tmp_path):
 
 
 def test_plain_doctype_without_internal_subset_is_accepted():
-    data = (b'<?xml version="1.0" encoding="UTF-8" standalone="no"?>\n'
-            b'<!DOCTYPE svg PUBLIC "-//W3C//DTD SVG 1.1//EN" '
-            b'"http://www.w3.org/Graphics/SVG/1.1/DTD/svg11.dtd">\n'
-            + svg('<rect width="10" height="10"/>'))
-    np.testing.assert_array_equal(read_svg_silhouette_from_bytes(data).alpha,
-                                  box(slice(0, 10), slice(0, 10)))
+    data = (
+        b'<?xml version="1.0" encoding="UTF-8" standalone="no"?>\n'
+        b'<!DOCTYPE svg PUBLIC "-//W3C//DTD SVG 1.1//EN" '
+        b'"http://www.w3.org/Graphics/SVG/1.1/DTD/svg11.dtd">\n' + svg('<rect width="10" height="10"/>')
+    )
+    np.testing.assert_array_equal(read_svg_silhouette_from_bytes(data).alpha, box(slice(0, 10), slice(0, 10)))
 
 
 # ------------------------------------------------------------- paper silhouettes
+
 
 @pytest.mark.parametrize("name", PAPER_SHAPES)
 def test_paper_silhouettes_match_their_rasterisations(name):
@@ -425,6 +433,7 @@ def test_paper_silhouettes_match_their_rasterisations(name):
 
 
 # ------------------------------------------------------------------ performance
+
 
 def test_100k_segment_path_is_fast():
     n = 100_000
@@ -457,39 +466,56 @@ INTERNAL_SUBSET = b"""<!DOCTYPE svg [<!ATTLIST svg a CDATA "x">]>
 <svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 256 256"><rect width="9" height="9"/></svg>"""
 
 
-@pytest.mark.parametrize("data, reason", [
-    (b"", "not an SVG file"),
-    (b"   \n", "not an SVG file"),
-    (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "not an SVG file"),
-    (b"just some text", "not an SVG file"),
-    (b"<svg xmlns='http://www.w3.org/2000/svg'><rect", "not an SVG file"),
-    (b"<html><body/></html>", "not an SVG file"),
-    (b"\x1f\x8b\x08\x00garbage", "not an SVG file"),
-    (BILLION_LAUGHS, "entities"),
-    (EXTERNAL_ENTITY, "entities"),
-    (BILLION_LAUGHS.decode().encode("utf-16"), "entities"),
-    (INTERNAL_SUBSET, "internal subset"),
-    (svg(""), "SVG has no filled path"),
-    (svg('<text>hi</text><path d="M0 0H10V10Z" fill="none"/>'), "SVG has no filled path"),
-    (svg('<path d=""/>'), "SVG has no filled path"),
-    (svg(path_svg("M10 10L20 20Z")), "silhouette is empty"),
-    (svg(path_svg("M10 10H50H10Z")), "silhouette is empty"),
-    (svg(path_svg("M300 300H400V400Z")), "silhouette is empty"),
-    (svg('<rect width="10" height="10"/>', 'viewBox="0 0 0 10"'), "viewBox"),
-    (svg('<rect width="10" height="10"/>', 'viewBox="0 0 10"'), "viewBox"),
-    (svg('<rect width="10" height="10"/>', 'width="100%" height="100%"'), "no viewBox"),
-])
+@pytest.mark.parametrize(
+    "data, reason",
+    [
+        (b"", "not an SVG file"),
+        (b"   \n", "not an SVG file"),
+        (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "not an SVG file"),
+        (b"just some text", "not an SVG file"),
+        (b"<svg xmlns='http://www.w3.org/2000/svg'><rect", "not an SVG file"),
+        (b"<html><body/></html>", "not an SVG file"),
+        (b"\x1f\x8b\x08\x00garbage", "not an SVG file"),
+        (BILLION_LAUGHS, "entities"),
+        (EXTERNAL_ENTITY, "entities"),
+        (BILLION_LAUGHS.decode().encode("utf-16"), "entities"),
+        (INTERNAL_SUBSET, "internal subset"),
+        (svg(""), "SVG has no filled path"),
+        (svg('<text>hi</text><path d="M0 0H10V10Z" fill="none"/>'), "SVG has no filled path"),
+        (svg('<path d=""/>'), "SVG has no filled path"),
+        (svg(path_svg("M10 10L20 20Z")), "silhouette is empty"),
+        (svg(path_svg("M10 10H50H10Z")), "silhouette is empty"),
+        (svg(path_svg("M300 300H400V400Z")), "silhouette is empty"),
+        (svg('<rect width="10" height="10"/>', 'viewBox="0 0 0 10"'), "viewBox"),
+        (svg('<rect width="10" height="10"/>', 'viewBox="0 0 10"'), "viewBox"),
+        (svg('<rect width="10" height="10"/>', 'width="100%" height="100%"'), "no viewBox"),
+    ],
+)
 def test_bad_input_raises_jeans_error(data, reason):
     with pytest.raises(JeansError, match=reason) as info:
         read_svg_silhouette_from_bytes(data)
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize("d", [
-    "L10 10", "10 10", "M10", "M10 10L5", "M10 10X5 5", "M10 10L5 5Z 5 5",
-    "M 1e 5", "M10 10A5 5 0 2 0 20 20", "M10 10A5 5 0 0", "M10 10L.", "M10 10C1 2 3 4 5",
-    "M10 10L5 5 inf 0", "M10 10L5 5M", "M10 10 20 20C",
-])
+@pytest.mark.parametrize(
+    "d",
+    [
+        "L10 10",
+        "10 10",
+        "M10",
+        "M10 10L5",
+        "M10 10X5 5",
+        "M10 10L5 5Z 5 5",
+        "M 1e 5",
+        "M10 10A5 5 0 2 0 20 20",
+        "M10 10A5 5 0 0",
+        "M10 10L.",
+        "M10 10C1 2 3 4 5",
+        "M10 10L5 5 inf 0",
+        "M10 10L5 5M",
+        "M10 10 20 20C",
+    ],
+)
 def test_malformed_path_data_raises(d):
     with pytest.raises(JeansError, match="malformed path data"):
         read_svg_silhouette_from_bytes(svg(path_svg(d)))
@@ -511,13 +537,16 @@ def test_too_many_segments_after_flattening_raises():
     assert MAX_SEGMENTS == 2_000_000
 
 
-@pytest.mark.parametrize("d, reason", [
-    ("M0 0L1e400 0L0 10Z", "non-finite"),
-    ("M0 0A1e400 5 0 0 1 10 10Z", "non-finite"),
-    ("M0 0H1e10V10Z", "too large"),
-    # radii so small that scaling them up overflows: drawn as the chord, no area
-    ("M0 0A1e-320 1e-320 0 0 1 10 0Z", "silhouette is empty"),
-])
+@pytest.mark.parametrize(
+    "d, reason",
+    [
+        ("M0 0L1e400 0L0 10Z", "non-finite"),
+        ("M0 0A1e400 5 0 0 1 10 10Z", "non-finite"),
+        ("M0 0H1e10V10Z", "too large"),
+        # radii so small that scaling them up overflows: drawn as the chord, no area
+        ("M0 0A1e-320 1e-320 0 0 1 10 0Z", "silhouette is empty"),
+    ],
+)
 def test_absurd_numbers_raise_cleanly(d, reason):
     with pytest.raises(JeansError, match=reason):
         read_svg_silhouette_from_bytes(svg(path_svg(d)))
@@ -545,9 +574,14 @@ def test_path_data_cut_into_pieces_parses_the_same(piece_size):
     # inside a command's arguments or between glued arc flags' neighbours
     rng = np.random.default_rng(7)
     values = rng.uniform(0, 256, size=(60, 6)).round(3).tolist()
-    d = ("M10 10C" + " ".join(" ".join(map(repr, row)) for row in values) + "Z"
-         + "M1,1" + "".join(f"a5 5 0 01{x!r},{y!r}" for x, *_ in values for y in [x / 2])
-         + "m1.5.5-1-2 1e-3 0h3v4s1 2 3 4t5 6q1 2 3 4l5 6z")
+    d = (
+        "M10 10C"
+        + " ".join(" ".join(map(repr, row)) for row in values)
+        + "Z"
+        + "M1,1"
+        + "".join(f"a5 5 0 01{x!r},{y!r}" for x, *_ in values for y in [x / 2])
+        + "m1.5.5-1-2 1e-3 0h3v4s1 2 3 4t5 6q1 2 3 4l5 6z"
+    )
     whole, pieces = _PathBuilder(), _PathBuilder()
     _parse_path_data(d, whole, piece_size=10**9)
     _parse_path_data(d, pieces, piece_size=piece_size)

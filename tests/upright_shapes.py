@@ -8,7 +8,7 @@ the middle of the canvas with empty bands above and below, as in a fitted photo.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

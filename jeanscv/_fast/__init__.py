@@ -113,12 +113,26 @@ class Objective:
         ``silhouette`` to the capsule cap offsets (:func:`objective.objective`)."""
         cos_r, sin_r = cap_offsets(half_width)
         return (
-            silhouette, self.row_sums(silhouette), half_width, self.weights, self.waist, self.hems, self.residual,
-            self.is_open, self.is_closed, self.pair, cos_r, sin_r,
+            silhouette,
+            self.row_sums(silhouette),
+            half_width,
+            self.weights,
+            self.waist,
+            self.hems,
+            self.residual,
+            self.is_open,
+            self.is_closed,
+            self.pair,
+            cos_r,
+            sin_r,
         )
 
     def __call__(
-        self, vertices: np.ndarray, silhouette: np.ndarray, half_width: float = STROKE_HALF_WIDTH, need_grad: bool = True
+        self,
+        vertices: np.ndarray,
+        silhouette: np.ndarray,
+        half_width: float = STROKE_HALF_WIDTH,
+        need_grad: bool = True,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(totals (B,), grad (B, N, 2), terms (B, 8))`` for canvas-pixel ``vertices``
         ``(B, N, 2)`` on a square float64 ``silhouette``; ``grad`` is d total / d vertices.
@@ -132,8 +146,15 @@ class Objective:
         totals = np.empty(vertices.shape[0])
         terms = np.empty((vertices.shape[0], len(TERM_NAMES)))
         grad = np.empty(vertices.shape)
-        objective(vertices, *self._arguments(silhouette, float(half_width)), need_grad, totals, terms, grad,
-                  *scratch(silhouette.shape[0], float(half_width), vertices.shape[1]))
+        objective(
+            vertices,
+            *self._arguments(silhouette, float(half_width)),
+            need_grad,
+            totals,
+            terms,
+            grad,
+            *scratch(silhouette.shape[0], float(half_width), vertices.shape[1]),
+        )
         return totals, grad, terms
 
     def descend(self, optimizer, target: np.ndarray, steps: int, half_width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -149,8 +170,18 @@ class Objective:
         path = np.empty((steps, batch, n, 2))
         beta1, beta2 = optimizer.betas
         done = descend(
-            optimizer.params, optimizer.exp_avg, optimizer.exp_avg_sq, step_sizes, bias2, beta1, beta2, optimizer.eps,
-            *self._arguments(target, float(half_width)), totals, path, *scratch(target.shape[0], float(half_width), n),
+            optimizer.params,
+            optimizer.exp_avg,
+            optimizer.exp_avg_sq,
+            step_sizes,
+            bias2,
+            beta1,
+            beta2,
+            optimizer.eps,
+            *self._arguments(target, float(half_width)),
+            totals,
+            path,
+            *scratch(target.shape[0], float(half_width), n),
         )
         optimizer.steps += done
         return totals[:done], path[:done]
@@ -173,17 +204,26 @@ def scratch(size: int, half_width: float, n: int) -> tuple[np.ndarray, ...]:
             # read at every stroke pixel, and a quarter of the bytes stays in cache.
             np.zeros(size * size, np.uint8 if n <= 8 else np.uint16 if n <= 16 else np.int64),
             np.zeros((size, size + 2)),
-            np.zeros((size, size + 2), np.uint8), np.empty((size, size + 2), np.int64), np.zeros(size, np.int64),
-            np.empty((size, size)), np.empty((size, size + 2)), np.empty((size, size + 2)),
-            np.empty((n, rows, 15)), np.empty((n, rows, 13)),
-            np.empty(size * size, np.int64), np.empty(size * size, np.int64), np.empty((size * size, n)),
-            np.empty((size * size, 2), np.bool_), np.zeros((n, rows), np.bool_),
+            np.zeros((size, size + 2), np.uint8),
+            np.empty((size, size + 2), np.int64),
+            np.zeros(size, np.int64),
+            np.empty((size, size)),
+            np.empty((size, size + 2)),
+            np.empty((size, size + 2)),
+            np.empty((n, rows, 15)),
+            np.empty((n, rows, 13)),
+            np.empty(size * size, np.int64),
+            np.empty(size * size, np.int64),
+            np.empty((size * size, n)),
+            np.empty((size * size, 2), np.bool_),
+            np.zeros((n, rows), np.bool_),
         )
     return _scratch[key]
 
 
-def polygon_coverage(vertices: np.ndarray, height: int, width: int, top: int = 0, rows: int | None = None,
-                     dtype=np.float64) -> np.ndarray:
+def polygon_coverage(
+    vertices: np.ndarray, height: int, width: int, top: int = 0, rows: int | None = None, dtype=np.float64
+) -> np.ndarray:
     """Exact coverage of the closed polygon ``vertices`` ``(N, 2)`` on rows ``top ..
     top + rows`` of a ``height x width`` grid (render.polygon_coverage)."""
     from .raster import polygon_coverage_rows
@@ -194,8 +234,9 @@ def polygon_coverage(vertices: np.ndarray, height: int, width: int, top: int = 0
     return out
 
 
-def stroke_coverage(start: np.ndarray, end: np.ndarray, height: int = 256, width: int = 256,
-                    half_width: float = STROKE_HALF_WIDTH) -> np.ndarray:
+def stroke_coverage(
+    start: np.ndarray, end: np.ndarray, height: int = 256, width: int = 256, half_width: float = STROKE_HALF_WIDTH
+) -> np.ndarray:
     """``(M, height, width)`` stroke alphas of segments ``(M, 2)`` (render.stroke_coverage)."""
     from .raster import stroke_maps
 

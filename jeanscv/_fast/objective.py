@@ -25,13 +25,11 @@ import numpy as np
 from numba import njit
 
 from ..fitter import adam_update
-
 from .raster import (
     BAND_COLUMNS,
     OUTLINE_POINTS,
     band_rows,
     gather_edge,
-    row_prefix,
     scatter_edge,
     stroke_band,
     stroke_band_backward,
@@ -44,6 +42,8 @@ def band_scratch_rows(size: int, half_width: float) -> int:
     """Rows enough for any stroke band on a ``size`` canvas: segments are clipped to
     the canvas plus ``half_width + 2`` and a band adds ``half_width`` and a row each side."""
     return size + 4 * int(math.ceil(half_width)) + 12
+
+
 (CENTER, COVERAGE, RIGID, OPEN, CLOSED, INTER, INSIDE, UPRIGHT) = range(8)
 
 
@@ -123,8 +123,27 @@ def _sorted_cells(touched, listed, counts, r, cols):
 
 
 @njit(cache=True)
-def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, touched, listed, counts, wind,
-                cell_grad, prefix, col0, ts, axes, lines):
+def _fill_terms(
+    v,
+    s,
+    s_rows,
+    s_total,
+    w_cov,
+    w_inside,
+    grad,
+    need_grad,
+    diff,
+    touched,
+    listed,
+    counts,
+    wind,
+    cell_grad,
+    prefix,
+    col0,
+    ts,
+    axes,
+    lines,
+):
     """``(coverage, inside)`` of one candidate; adds their weighted gradient to ``grad``.
 
     ``s_rows``: ``(C, C + 1)`` prefix sums of ``S`` along rows. Work is O(pieces + rows
@@ -150,8 +169,25 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, t
         cells = (touched, listed, counts)
         for i in range(n):
             j = (i + 1) % n
-            scatter_edge(v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size),
-                         oy, col0, rows, cols, diff, ts, axes, lines, cells)
+            scatter_edge(
+                v[i, 0],
+                v[i, 1],
+                v[j, 0],
+                v[j, 1],
+                0.0,
+                float(size),
+                0.0,
+                float(size),
+                oy,
+                col0,
+                rows,
+                cols,
+                diff,
+                ts,
+                axes,
+                lines,
+                cells,
+            )
         for r in range(rows):
             y = oy + r
             s_window += s_rows[y, ox + cols] - s_rows[y, ox]
@@ -229,8 +265,26 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, t
     for i in range(n):
         j = (i + 1) % n
         g4[:] = 0.0
-        gather_edge(v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size),
-                    oy, col0, rows, cols, cell_grad, prefix, ts, axes, lines, g4)
+        gather_edge(
+            v[i, 0],
+            v[i, 1],
+            v[j, 0],
+            v[j, 1],
+            0.0,
+            float(size),
+            0.0,
+            float(size),
+            oy,
+            col0,
+            rows,
+            cols,
+            cell_grad,
+            prefix,
+            ts,
+            axes,
+            lines,
+            g4,
+        )
         grad[i, 0] += g4[0] - g4[2]
         grad[i, 1] += g4[1] - g4[3]
         grad[j, 0] += g4[2]
@@ -260,10 +314,38 @@ def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
 
 @njit(cache=True)
 def objective(
-    vertices, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, need_grad,
-    totals, terms, grad, mask, diff, touched, listed, counts, wind, cell_grad, prefix, band_diff, band_wind,
-    overlap_pixel, overlap_bits,
-    overlap_alpha, overlap_fits, overlap_rows,
+    vertices,
+    s,
+    s_rows,
+    half_width,
+    weights,
+    waist,
+    hems,
+    residual,
+    is_open,
+    is_closed,
+    pair,
+    cos_r,
+    sin_r,
+    need_grad,
+    totals,
+    terms,
+    grad,
+    mask,
+    diff,
+    touched,
+    listed,
+    counts,
+    wind,
+    cell_grad,
+    prefix,
+    band_diff,
+    band_wind,
+    overlap_pixel,
+    overlap_bits,
+    overlap_alpha,
+    overlap_fits,
+    overlap_rows,
 ):
     """All eight terms of each candidate and the gradient of the weighted total.
 
@@ -306,8 +388,18 @@ def objective(
         if finite[b]:
             for i in range(n):
                 j = (i + 1) % n
-                rows_limit = max(rows_limit, band_rows(vertices[b, i, 0], vertices[b, i, 1], vertices[b, j, 0],
-                                                       vertices[b, j, 1], half_width, low, high))
+                rows_limit = max(
+                    rows_limit,
+                    band_rows(
+                        vertices[b, i, 0],
+                        vertices[b, i, 1],
+                        vertices[b, j, 0],
+                        vertices[b, j, 1],
+                        half_width,
+                        low,
+                        high,
+                    ),
+                )
 
     crossings = 4 * (size + 4 * int(margin) + 16)
     ts, axes, lines = np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings)
@@ -360,8 +452,27 @@ def objective(
                         g_v[k, 1] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 1] / size
         terms[b, UPRIGHT] = _upright(v, waist, hems, free, saturated, weights[UPRIGHT], g_v, need_grad)
 
-        coverage, inside = _fill_terms(v, s, s_rows, s_total, weights[COVERAGE], weights[INSIDE], g_v, need_grad,
-                                       diff, touched, listed, counts, wind, cell_grad, prefix, col0, ts, axes, lines)
+        coverage, inside = _fill_terms(
+            v,
+            s,
+            s_rows,
+            s_total,
+            weights[COVERAGE],
+            weights[INSIDE],
+            g_v,
+            need_grad,
+            diff,
+            touched,
+            listed,
+            counts,
+            wind,
+            cell_grad,
+            prefix,
+            col0,
+            ts,
+            axes,
+            lines,
+        )
         terms[b, COVERAGE] = coverage
         terms[b, INSIDE] = inside
 
@@ -370,8 +481,22 @@ def objective(
         for e in range(n):
             f = (e + 1) % n
             row_start[e], band_count[e], x_major[e], empty = stroke_band(
-                v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, rows_limit, cos_r, sin_r, outline,
-                col_start[e], band_diff[e], ts, axes, lines,
+                v[e, 0],
+                v[e, 1],
+                v[f, 0],
+                v[f, 1],
+                half_width,
+                low,
+                high,
+                rows_limit,
+                cos_r,
+                sin_r,
+                outline,
+                col_start[e],
+                band_diff[e],
+                ts,
+                axes,
+                lines,
             )
             bit = mask.dtype.type(1 << e)
             areas[e] = on_body[e] = 0.0
@@ -436,7 +561,11 @@ def objective(
                         if (bits >> k) & 1:
                             present[count] = k
                             count += 1
-                        here[k] = _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y) if (bits >> k) & 1 else 0.0
+                        here[k] = (
+                            _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                            if (bits >> k) & 1
+                            else 0.0
+                        )
                     for u in range(2):
                         stacked = 0.0
                         for a in range(count):
@@ -549,8 +678,25 @@ def objective(
         for e in range(n):
             f = (e + 1) % n
             gpx, gpy, gqx, gqy = stroke_band_backward(
-                v[e, 0], v[e, 1], v[f, 0], v[f, 1], half_width, low, high, row_start[e], band_count[e],
-                cos_r, sin_r, outline, g_outline, col_start[e], band_diff[e], band_prefix, ts, axes, lines,
+                v[e, 0],
+                v[e, 1],
+                v[f, 0],
+                v[f, 1],
+                half_width,
+                low,
+                high,
+                row_start[e],
+                band_count[e],
+                cos_r,
+                sin_r,
+                outline,
+                g_outline,
+                col_start[e],
+                band_diff[e],
+                band_prefix,
+                ts,
+                axes,
+                lines,
             )
             g_v[e, 0] += gpx
             g_v[e, 1] += gpy
@@ -592,9 +738,43 @@ _adam_update = njit(cache=True)(adam_update)
 
 @njit(cache=True)
 def descend(
-    params, exp_avg, exp_avg_sq, step_sizes, bias2, beta1, beta2, eps, s, s_rows, half_width, weights, waist, hems,
-    residual, is_open, is_closed, pair, cos_r, sin_r, totals, path, mask, diff, touched, listed, counts, wind, cell_grad,
-    prefix, band_diff, band_wind, overlap_pixel, overlap_bits, overlap_alpha, overlap_fits, overlap_rows,
+    params,
+    exp_avg,
+    exp_avg_sq,
+    step_sizes,
+    bias2,
+    beta1,
+    beta2,
+    eps,
+    s,
+    s_rows,
+    half_width,
+    weights,
+    waist,
+    hems,
+    residual,
+    is_open,
+    is_closed,
+    pair,
+    cos_r,
+    sin_r,
+    totals,
+    path,
+    mask,
+    diff,
+    touched,
+    listed,
+    counts,
+    wind,
+    cell_grad,
+    prefix,
+    band_diff,
+    band_wind,
+    overlap_pixel,
+    overlap_bits,
+    overlap_alpha,
+    overlap_fits,
+    overlap_rows,
 ):
     """The fit's Adam steps on one target in one call: a step crosses into Python once per
     stretch of steps on the same target instead of a dozen times (about 0.1 ms a step, a
@@ -616,10 +796,38 @@ def descend(
     for k in range(step_sizes.shape[0]):
         pixels[:] = params * size
         objective(
-            pixels, s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r, True,
-            totals[k], terms, grad, mask, diff, touched, listed, counts, wind, cell_grad, prefix, band_diff, band_wind,
+            pixels,
+            s,
+            s_rows,
+            half_width,
+            weights,
+            waist,
+            hems,
+            residual,
+            is_open,
+            is_closed,
+            pair,
+            cos_r,
+            sin_r,
+            True,
+            totals[k],
+            terms,
+            grad,
+            mask,
+            diff,
+            touched,
+            listed,
+            counts,
+            wind,
+            cell_grad,
+            prefix,
+            band_diff,
+            band_wind,
             overlap_pixel,
-            overlap_bits, overlap_alpha, overlap_fits, overlap_rows,
+            overlap_bits,
+            overlap_alpha,
+            overlap_fits,
+            overlap_rows,
         )
         any_finite = False
         for b in range(batch):

@@ -208,8 +208,23 @@ def polygon_winding(vertices, height, width, row0, nrows, diff, ts, axes, lines)
     for i in range(n):
         j = (i + 1) % n
         scatter_edge(
-            vertices[i, 0], vertices[i, 1], vertices[j, 0], vertices[j, 1],
-            0.0, float(width), 0.0, float(height), row0, col0, nrows, width, diff, ts, axes, lines, None,
+            vertices[i, 0],
+            vertices[i, 1],
+            vertices[j, 0],
+            vertices[j, 1],
+            0.0,
+            float(width),
+            0.0,
+            float(height),
+            row0,
+            col0,
+            nrows,
+            width,
+            diff,
+            ts,
+            axes,
+            lines,
+            None,
         )
 
 
@@ -387,7 +402,9 @@ def clip_backward(px, py, qx, qy, t_in, t_out, ax_in, ax_out, side_in, side_out,
 
 
 @njit(cache=True)
-def stroke_band(px, py, qx, qy, half_width, low, high, rows_limit, cos_r, sin_r, outline, col_start, diff, ts, axes, lines):
+def stroke_band(
+    px, py, qx, qy, half_width, low, high, rows_limit, cos_r, sin_r, outline, col_start, diff, ts, axes, lines
+):
     """Rasterize the capsule of ``p -> q`` onto its band.
 
     Fills ``diff`` ``(rows, 15)`` (zeroed here) and ``col_start``; returns ``(row_start,
@@ -407,16 +424,48 @@ def stroke_band(px, py, qx, qy, half_width, low, high, rows_limit, cos_r, sin_r,
     for k in range(OUTLINE_POINTS):
         m = (k + 1) % OUTLINE_POINTS
         scatter_edge(
-            outline[k, 0], outline[k, 1], outline[m, 0], outline[m, 1],
-            -inf, inf, -inf, inf, row_start, col_start, rows, BAND_COLUMNS, diff, ts, axes, lines, None,
+            outline[k, 0],
+            outline[k, 1],
+            outline[m, 0],
+            outline[m, 1],
+            -inf,
+            inf,
+            -inf,
+            inf,
+            row_start,
+            col_start,
+            rows,
+            BAND_COLUMNS,
+            diff,
+            ts,
+            axes,
+            lines,
+            None,
         )
     return row_start, rows, x_major, False
 
 
 @njit(cache=True)
 def stroke_band_backward(
-    px, py, qx, qy, half_width, low, high, row_start, rows, cos_r, sin_r, outline, g_outline, col_start,
-    cell_grad, prefix, ts, axes, lines,
+    px,
+    py,
+    qx,
+    qy,
+    half_width,
+    low,
+    high,
+    row_start,
+    rows,
+    cos_r,
+    sin_r,
+    outline,
+    g_outline,
+    col_start,
+    cell_grad,
+    prefix,
+    ts,
+    axes,
+    lines,
 ):
     """Backward of :func:`stroke_band`: dL/d(p, q) from dL/dW on the band."""
     sx, sy, ex, ey, x_major, clip = clipped_segment(px, py, qx, qy, low, high)
@@ -430,8 +479,24 @@ def stroke_band_backward(
         m = (k + 1) % OUTLINE_POINTS
         g[:] = 0.0
         gather_edge(
-            outline[k, 0], outline[k, 1], outline[m, 0], outline[m, 1],
-            -inf, inf, -inf, inf, row_start, col_start, rows, BAND_COLUMNS, cell_grad, prefix, ts, axes, lines, g,
+            outline[k, 0],
+            outline[k, 1],
+            outline[m, 0],
+            outline[m, 1],
+            -inf,
+            inf,
+            -inf,
+            inf,
+            row_start,
+            col_start,
+            rows,
+            BAND_COLUMNS,
+            cell_grad,
+            prefix,
+            ts,
+            axes,
+            lines,
+            g,
         )
         # g = dL/d(a, d) of the outline edge a = point k, d = point m - point k.
         g_outline[k, 0] += g[0] - g[2]
@@ -461,8 +526,22 @@ def stroke_maps(start, end, height, width, half_width, cos_r, sin_r, out):
     diff = np.empty((rows_limit, BAND_COLUMNS + 2))
     for m in range(count):
         row_start, rows, x_major, empty = stroke_band(
-            start[m, 0], start[m, 1], end[m, 0], end[m, 1], half_width, low, high, rows_limit, cos_r, sin_r,
-            outline, col_start, diff, ts, axes, lines,
+            start[m, 0],
+            start[m, 1],
+            end[m, 0],
+            end[m, 1],
+            half_width,
+            low,
+            high,
+            rows_limit,
+            cos_r,
+            sin_r,
+            outline,
+            col_start,
+            diff,
+            ts,
+            axes,
+            lines,
         )
         for r in range(rows):
             acc = 0.0

@@ -27,10 +27,35 @@ from jeanscv.errors import JeansError
 
 RAW_EXTENSIONS: frozenset[str] = frozenset(
     {
-        ".dng", ".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2",
-        ".raf", ".orf", ".rw2", ".rwl", ".pef", ".ptx", ".srw", ".raw", ".3fr",
-        ".fff", ".erf", ".kdc", ".dcr", ".k25", ".mrw", ".x3f", ".iiq", ".mos",
-        ".mef", ".gpr",
+        ".dng",
+        ".cr2",
+        ".cr3",
+        ".crw",
+        ".nef",
+        ".nrw",
+        ".arw",
+        ".srf",
+        ".sr2",
+        ".raf",
+        ".orf",
+        ".rw2",
+        ".rwl",
+        ".pef",
+        ".ptx",
+        ".srw",
+        ".raw",
+        ".3fr",
+        ".fff",
+        ".erf",
+        ".kdc",
+        ".dcr",
+        ".k25",
+        ".mrw",
+        ".x3f",
+        ".iiq",
+        ".mos",
+        ".mef",
+        ".gpr",
     }
 )
 """Lower-case file extensions decoded as camera RAW (with rawpy/LibRaw)."""
@@ -195,7 +220,7 @@ def _load_pillow(file: BinaryIO, max_pixels: int) -> LoadedImage:
         # OpenCV applies the orientation for some formats and not others, so take
         # the layout that agrees with Pillow's decode to within that last bit.
         deep = _decode_16bit(file)
-        for candidate in ([] if deep is None else [deep, _orient(deep, orientation)]):
+        for candidate in [] if deep is None else [deep, _orient(deep, orientation)]:
             if candidate.shape == pixels.shape and _max_difference(candidate, pixels) <= 1:
                 pixels = candidate
                 break

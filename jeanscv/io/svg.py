@@ -65,10 +65,8 @@ _NUMBER_RE = re.compile(_NUMBER)
 _PATH_SCAN_RE = re.compile(r"[\s,]*([MmZzLlHhVvCcSsQqTtAa]|" + _NUMBER + r"|[^\s,])")
 _SEPARATORS_ONLY_RE = re.compile(r"[\s,]*")
 _LENGTH_RE = re.compile(r"\s*(" + _NUMBER + r")\s*(px|pt|pc|mm|cm|in|%|)\s*")
-_UNIT_PX = {"": 1.0, "px": 1.0, "pt": 96 / 72, "pc": 16.0, "mm": 96 / 25.4,
-            "cm": 96 / 2.54, "in": 96.0}
-_TRANSFORM_RE = re.compile(
-    r"[\s,]*(matrix|translate|scale|rotate|skewX|skewY)\s*\(([^)]*)\)[\s,]*")
+_UNIT_PX = {"": 1.0, "px": 1.0, "pt": 96 / 72, "pc": 16.0, "mm": 96 / 25.4, "cm": 96 / 2.54, "in": 96.0}
+_TRANSFORM_RE = re.compile(r"[\s,]*(matrix|translate|scale|rotate|skewX|skewY)\s*\(([^)]*)\)[\s,]*")
 _COMMANDS = frozenset("MmZzLlHhVvCcSsQqTtAa")
 _CUT_RE = re.compile(r"[\s,MmZzLlHhVvCcSsQqTtAa]")
 _ARITY = {"M": 2, "L": 2, "H": 1, "V": 1, "C": 6, "S": 4, "Q": 4, "T": 2, "A": 7}
@@ -91,8 +89,7 @@ class SvgSilhouette:
     height: float
 
 
-def read_svg_silhouette(path: str | Path, canvas_size: int = 256,
-                        supersample: int = 4) -> SvgSilhouette:
+def read_svg_silhouette(path: str | Path, canvas_size: int = 256, supersample: int = 4) -> SvgSilhouette:
     """Read the SVG (or gzipped ``.svgz``) at ``path`` and rasterise its filled shapes."""
     try:
         with open(path, "rb") as handle:
@@ -102,8 +99,7 @@ def read_svg_silhouette(path: str | Path, canvas_size: int = 256,
     return read_svg_silhouette_from_bytes(data, canvas_size, supersample)
 
 
-def read_svg_silhouette_from_bytes(data: bytes, canvas_size: int = 256,
-                                   supersample: int = 4) -> SvgSilhouette:
+def read_svg_silhouette_from_bytes(data: bytes, canvas_size: int = 256, supersample: int = 4) -> SvgSilhouette:
     """Like :func:`read_svg_silhouette`, for the file's bytes."""
     if not isinstance(canvas_size, int) or not 1 <= canvas_size <= 8192:
         raise JeansError(f"canvas size must be an integer in 1..8192, not {canvas_size!r}")
@@ -112,10 +108,13 @@ def read_svg_silhouette_from_bytes(data: bytes, canvas_size: int = 256,
     root = _parse_xml(_maybe_gunzip(bytes(data)))
     min_x, min_y, width, height = _root_viewbox(root)
     scale = canvas_size / max(width, height)
-    user_to_canvas = np.array([
-        [scale, 0.0, (canvas_size - scale * width) / 2 - scale * min_x],
-        [0.0, scale, (canvas_size - scale * height) / 2 - scale * min_y],
-        [0.0, 0.0, 1.0]])
+    user_to_canvas = np.array(
+        [
+            [scale, 0.0, (canvas_size - scale * width) / 2 - scale * min_x],
+            [0.0, scale, (canvas_size - scale * height) / 2 - scale * min_y],
+            [0.0, 0.0, 1.0],
+        ]
+    )
 
     shapes: list[_Shape] = []
     _Walker(root, shapes, (width, height)).walk(root, user_to_canvas, _DEFAULT_STYLE, 0)
@@ -123,10 +122,12 @@ def read_svg_silhouette_from_bytes(data: bytes, canvas_size: int = 256,
         raise JeansError("SVG has no filled path")
     alpha = _rasterize_shapes(shapes, canvas_size, supersample)
     if not np.any(alpha):
-        raise JeansError("silhouette is empty: the path encloses no area inside the "
-                         "viewBox (or is thinner than a sample)")
-    return SvgSilhouette(alpha=alpha, canvas_to_image=invert_affine(user_to_canvas[:2]),
-                         width=float(width), height=float(height))
+        raise JeansError(
+            "silhouette is empty: the path encloses no area inside the viewBox (or is thinner than a sample)"
+        )
+    return SvgSilhouette(
+        alpha=alpha, canvas_to_image=invert_affine(user_to_canvas[:2]), width=float(width), height=float(height)
+    )
 
 
 def flatten_path_data(d: str, tolerance: float = FLATTEN_TOLERANCE) -> list[np.ndarray]:
@@ -156,6 +157,7 @@ def flatten_path_data(d: str, tolerance: float = FLATTEN_TOLERANCE) -> list[np.n
 
 
 # --------------------------------------------------------------------------- XML
+
 
 class _Node:
     __slots__ = ("tag", "attrs", "children")
@@ -222,8 +224,7 @@ def _parse_xml(data: bytes) -> _Node:
     def end(name: str) -> None:
         stack.pop()
 
-    def doctype(name: str, sysid: str | None, pubid: str | None,
-                has_internal_subset: int) -> None:
+    def doctype(name: str, sysid: str | None, pubid: str | None, has_internal_subset: int) -> None:
         if has_internal_subset:
             raise JeansError("SVG has a DOCTYPE internal subset, which is refused for safety")
 
@@ -252,6 +253,7 @@ def _parse_xml(data: bytes) -> _Node:
 
 # ------------------------------------------------------------- attributes, style
 
+
 def _numbers(text: str, what: str) -> list[float]:
     """All numbers in a whitespace/comma separated list; anything else is an error."""
     if not _SEPARATORS_ONLY_RE.fullmatch(_NUMBER_RE.sub(" ", text)):
@@ -259,8 +261,7 @@ def _numbers(text: str, what: str) -> list[float]:
     return [float(v) for v in _NUMBER_RE.findall(text)]
 
 
-def _length(text: str | None, default: float, what: str,
-            percent_of: float | None = None) -> float:
+def _length(text: str | None, default: float, what: str, percent_of: float | None = None) -> float:
     """A length in px (user units); ``%`` needs ``percent_of``; font units are refused."""
     if text is None or not text.strip():
         return default
@@ -331,11 +332,11 @@ def _parse_transform(text: str | None) -> np.ndarray:
 
 
 def _transform_matrix(name: str, args: list[float]) -> np.ndarray:
-    allowed = {"matrix": (6,), "translate": (1, 2), "scale": (1, 2), "rotate": (1, 3),
-               "skewX": (1,), "skewY": (1,)}[name]
+    allowed = {"matrix": (6,), "translate": (1, 2), "scale": (1, 2), "rotate": (1, 3), "skewX": (1,), "skewY": (1,)}[
+        name
+    ]
     if len(args) not in allowed:
-        raise JeansError(f"malformed transform: {name} takes {' or '.join(map(str, allowed))}"
-                         f" numbers, got {len(args)}")
+        raise JeansError(f"malformed transform: {name} takes {' or '.join(map(str, allowed))} numbers, got {len(args)}")
     m = np.eye(3)
     if name == "matrix":
         a, b, c, d, e, f = args
@@ -359,6 +360,7 @@ def _transform_matrix(name: str, args: list[float]) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ tree walking
+
 
 @dataclass(frozen=True)
 class _Style:
@@ -397,13 +399,17 @@ class _Walker:
         """Render ``node``'s children under the user-to-canvas matrix ``ctm``."""
         children = node.children
         if node.tag == "switch":  # only the first child that applies is rendered
-            children = [c for c in children if c.tag is not None and c.tag != "foreignObject"
-                        and not {"requiredExtensions", "systemLanguage"} & c.attrs.keys()][:1]
+            children = [
+                c
+                for c in children
+                if c.tag is not None
+                and c.tag != "foreignObject"
+                and not {"requiredExtensions", "systemLanguage"} & c.attrs.keys()
+            ][:1]
         for child in children:
             self.element(child, ctm, style, depth + 1)
 
-    def element(self, node: _Node, ctm: np.ndarray, style: _Style, depth: int,
-                via_use: bool = False) -> None:
+    def element(self, node: _Node, ctm: np.ndarray, style: _Style, depth: int, via_use: bool = False) -> None:
         tag = node.tag
         if depth > _MAX_DEPTH + 64:
             raise JeansError("SVG elements are nested too deeply")
@@ -411,17 +417,19 @@ class _Walker:
             return  # a symbol is drawn only where a <use> instantiates it
         if tag not in _SHAPES and tag not in _CONTAINERS and tag not in ("svg", "switch", "use"):
             return  # defs, clipPath, mask, text, foreign elements...: not silhouette
-        props = {k: node.attrs[k].strip().lower() for k in
-                 ("fill", "fill-rule", "fill-opacity", "opacity", "display", "visibility")
-                 if k in node.attrs}
+        props = {
+            k: node.attrs[k].strip().lower()
+            for k in ("fill", "fill-rule", "fill-opacity", "opacity", "display", "visibility")
+            if k in node.attrs
+        }
         props.update(_parse_style(node.attrs.get("style")))
         if props.get("display") == "none" or _is_zero(props.get("opacity", "1")):
             return
         style = _Style(
             filled=_inherit(props.get("fill"), style.filled, _is_silhouette_paint),
             evenodd=_inherit(props.get("fill-rule"), style.evenodd, lambda v: v == "evenodd"),
-            visible=_inherit(props.get("visibility"), style.visible,
-                             lambda v: v not in ("hidden", "collapse")))
+            visible=_inherit(props.get("visibility"), style.visible, lambda v: v not in ("hidden", "collapse")),
+        )
         if "fill-opacity" in props and _is_zero(props["fill-opacity"]):
             style = _Style(False, style.evenodd, style.visible)
         if tag != "svg":
@@ -466,7 +474,7 @@ def _is_silhouette_paint(fill: str) -> bool:
     if re.fullmatch(r"#[0-9a-f]{3,4}", fill):
         channels = [int(c * 2, 16) for c in fill[1:4]]
     elif re.fullmatch(r"#[0-9a-f]{6}([0-9a-f]{2})?", fill):
-        channels = [int(fill[i:i + 2], 16) for i in (1, 3, 5)]
+        channels = [int(fill[i : i + 2], 16) for i in (1, 3, 5)]
     else:
         match = re.fullmatch(r"rgba?\(([^)]*)\)", fill)
         if match is None:
@@ -500,9 +508,13 @@ def _nested_viewport(node: _Node) -> np.ndarray:
             return m  # percentage sizes: keep the viewBox units as they are
         if len(values) == 4 and values[2] > 0 and values[3] > 0 and width > 0 and height > 0:
             s = min(width / values[2], height / values[3])
-            fit = np.array([[s, 0, (width - s * values[2]) / 2 - s * values[0]],
-                            [0, s, (height - s * values[3]) / 2 - s * values[1]],
-                            [0, 0, 1.0]])
+            fit = np.array(
+                [
+                    [s, 0, (width - s * values[2]) / 2 - s * values[0]],
+                    [0, s, (height - s * values[3]) / 2 - s * values[1]],
+                    [0, 0, 1.0],
+                ]
+            )
             m = m @ fit
     return m
 
@@ -568,6 +580,7 @@ def _shape_geometry(node: _Node, b: _PathBuilder, viewport: tuple[float, float])
 
 # -------------------------------------------------------------------- path data
 
+
 class _PathBuilder:
     """Accumulates outlines as cubic Bezier segments, each tagged with its subpath.
 
@@ -588,8 +601,9 @@ class _PathBuilder:
         self.new_sub = True
 
     def _pack(self) -> None:
-        self.packed.append((np.array(self.coords, dtype=np.float64).reshape(-1, 4, 2),
-                            np.array(self.sub, dtype=np.int64)))
+        self.packed.append(
+            (np.array(self.coords, dtype=np.float64).reshape(-1, 4, 2), np.array(self.sub, dtype=np.int64))
+        )
         self.n_packed += len(self.sub)
         self.coords.clear()
         self.sub.clear()
@@ -637,11 +651,9 @@ class _PathBuilder:
 
     def quad_to(self, qx: float, qy: float, x: float, y: float) -> None:
         x0, y0 = self.x, self.y
-        self.cubic_to(x0 + 2 / 3 * (qx - x0), y0 + 2 / 3 * (qy - y0),
-                      x + 2 / 3 * (qx - x), y + 2 / 3 * (qy - y), x, y)
+        self.cubic_to(x0 + 2 / 3 * (qx - x0), y0 + 2 / 3 * (qy - y0), x + 2 / 3 * (qx - x), y + 2 / 3 * (qy - y), x, y)
 
-    def arc_to(self, rx: float, ry: float, rotation: float, large: bool, sweep: bool,
-               x: float, y: float) -> None:
+    def arc_to(self, rx: float, ry: float, rotation: float, large: bool, sweep: bool, x: float, y: float) -> None:
         """Elliptical arc per SVG 1.1 F.6.5 (endpoint to centre) and F.6.6 (radii)."""
         x1, y1 = self.x, self.y
         if x1 == x and y1 == y:
@@ -734,7 +746,7 @@ def _path_chunks(d: str, size: int = 1 << 18) -> Iterator[tuple[str, bool]]:
         match = _CUT_RE.search(d, start + size)
         if match is None:
             break
-        yield d[start:match.start()], False
+        yield d[start : match.start()], False
         start = match.start()
     yield d[start:], True
 
@@ -783,8 +795,7 @@ def _parse_path_data(d: str, b: _PathBuilder, piece_size: int = 1 << 18) -> None
                     x, y = float(tokens[i]), float(tokens[i + 1])
                     i += 2
                 except (ValueError, IndexError):
-                    raise JeansError("malformed path data: expected 7 arc parameters after "
-                                     f"{cmd!r}") from None
+                    raise JeansError(f"malformed path data: expected 7 arc parameters after {cmd!r}") from None
                 if rel:
                     x, y = x + x0, y + y0
                 b.arc_to(rx, ry, rot, large, sweep, x, y)
@@ -792,9 +803,9 @@ def _parse_path_data(d: str, b: _PathBuilder, piece_size: int = 1 << 18) -> None
                 continue
             k = _ARITY[upper]
             try:
-                v = [float(t) for t in tokens[i:i + k]]
+                v = [float(t) for t in tokens[i : i + k]]
             except ValueError:
-                bad = _bad_token(tokens[i:i + k])
+                bad = _bad_token(tokens[i : i + k])
                 if bad:
                     raise JeansError(f"malformed path data: unexpected {bad[:20]!r}") from None
                 v = []
@@ -838,8 +849,10 @@ def _parse_path_data(d: str, b: _PathBuilder, piece_size: int = 1 << 18) -> None
 
 # ---------------------------------------------------------------- flattening
 
-def _flatten(cubics: np.ndarray, sub: np.ndarray, tol: float,
-             canvas_size: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+def _flatten(
+    cubics: np.ndarray, sub: np.ndarray, tol: float, canvas_size: int | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Flatten ``(n, 4, 2)`` cubics to line pieces ``(a, b, piece_sub)``.
 
     Each cubic gets ``ceil(sqrt(0.75 * L / tol))`` uniform pieces, where ``L`` is the
@@ -886,6 +899,7 @@ def _bezier(cubics: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------- rasterisation
 
+
 class _Shape:
     """One filled element: its outline in user units and its user-to-canvas map."""
 
@@ -913,7 +927,7 @@ class _Edges:
         keep = j1 > j0
         self.x = top[keep, 0]
         self.y = top[keep, 1]
-        self.dxdy = ((bottom[keep, 0] - top[keep, 0]) / (bottom[keep, 1] - top[keep, 1]))
+        self.dxdy = (bottom[keep, 0] - top[keep, 0]) / (bottom[keep, 1] - top[keep, 1])
         self.dir = np.where(flip[keep], -1.0, 1.0)
         self.j0 = j0[keep].astype(np.int64)
         self.j1 = j1[keep].astype(np.int64)
@@ -940,8 +954,7 @@ class _Edges:
         x = self.x[edge] + (row - self.y[edge]) * self.dxdy[edge]
         # a crossing at x flips every sample strictly to its right: cols > x
         col = np.clip(np.floor(np.clip(x, c0 - 2, c1 + 2)).astype(np.int64) + 1 - c0, 0, width)
-        acc = np.bincount((row - r0) * (width + 1) + col, weights=self.dir[edge],
-                          minlength=(r1 - r0) * (width + 1))
+        acc = np.bincount((row - r0) * (width + 1) + col, weights=self.dir[edge], minlength=(r1 - r0) * (width + 1))
         winding = np.cumsum(acc.reshape(r1 - r0, width + 1)[:, :width], axis=1)
         if self.evenodd:
             return np.remainder(winding, 2) != 0
@@ -965,8 +978,7 @@ def _rasterize_shapes(shapes: list[_Shape], canvas_size: int, s: int) -> np.ndar
         last = np.flatnonzero(np.diff(np.append(piece_sub, -1)) != 0)
         first = np.concatenate([[0], last[:-1] + 1])
         closing_a, closing_b = b[last], a[first]
-        edge_sets.append(_Edges(np.concatenate([a, closing_a]),
-                                np.concatenate([b, closing_b]), s, shape.evenodd))
+        edge_sets.append(_Edges(np.concatenate([a, closing_a]), np.concatenate([b, closing_b]), s, shape.evenodd))
 
     alpha = np.zeros((canvas_size, canvas_size), dtype=np.float32)
     band = _BAND_PIXELS * s
@@ -984,5 +996,5 @@ def _rasterize_shapes(shapes: list[_Shape], canvas_size: int, s: int) -> np.ndar
             mask[:, c0:c1] |= edges.inside(r0, r1, c0, c1)
         if mask is not None:
             blocks = mask.reshape((r1 - r0) // s, s, canvas_size, s)
-            alpha[r0 // s:r1 // s] = blocks.sum(axis=(1, 3), dtype=np.int32) / np.float32(s * s)
+            alpha[r0 // s : r1 // s] = blocks.sum(axis=(1, 3), dtype=np.int32) / np.float32(s * s)
     return alpha

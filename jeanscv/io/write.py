@@ -116,9 +116,7 @@ def encode_image(
     ``icc_profile`` are embedded when given, so an output keeps the input's metadata.
     """
     pixels = np.asarray(pixels)
-    if pixels.dtype != np.uint8 or not (
-        pixels.ndim == 2 or (pixels.ndim == 3 and pixels.shape[2] in (3, 4))
-    ):
+    if pixels.dtype != np.uint8 or not (pixels.ndim == 2 or (pixels.ndim == 3 and pixels.shape[2] in (3, 4))):
         raise JeansError(f"cannot encode an array of shape {pixels.shape} and dtype {pixels.dtype}")
     name = _FORMAT_ALIASES.get(fmt.upper(), fmt.upper())
     if name not in ("PNG", "JPEG", "WEBP", "TIFF"):
@@ -163,8 +161,14 @@ def write_image(
 
 #: Picture formats an output keeps from its input; everything else becomes PNG.
 _KEEP_EXTENSION = {
-    ".jpg": ".jpg", ".jpeg": ".jpeg", ".jpe": ".jpg", ".jfif": ".jpg",
-    ".png": ".png", ".webp": ".webp", ".tif": ".tif", ".tiff": ".tiff",
+    ".jpg": ".jpg",
+    ".jpeg": ".jpeg",
+    ".jpe": ".jpg",
+    ".jfif": ".jpg",
+    ".png": ".png",
+    ".webp": ".webp",
+    ".tif": ".tif",
+    ".tiff": ".tiff",
 }
 
 
@@ -184,4 +188,3 @@ def output_extension(input_path: str | os.PathLike, fmt: str | None = None) -> s
     if suffix in RAW_EXTENSIONS:
         return ".jpg"
     return _KEEP_EXTENSION.get(suffix, ".png")
-

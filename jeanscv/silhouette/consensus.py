@@ -108,7 +108,9 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
 
 def _otsu_level(values: np.ndarray) -> float:
     """Otsu's threshold of values in [0, 1]."""
-    level, _ = cv2.threshold(np.clip(values * 255, 0, 255).astype(np.uint8), 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    level, _ = cv2.threshold(
+        np.clip(values * 255, 0, 255).astype(np.uint8), 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU
+    )
     return float(level) / 255.0
 
 
@@ -192,8 +194,10 @@ def border_shares(mask: np.ndarray) -> tuple[float, float, float, float]:
     """
     k = max(1, round(_CONTACT_BAND * min(mask.shape)))
     return (
-        float(mask[:k].any(axis=0).mean()), float(mask[:, :k].any(axis=1).mean()),
-        float(mask[:, -k:].any(axis=1).mean()), float(mask[-k:].any(axis=0).mean()),
+        float(mask[:k].any(axis=0).mean()),
+        float(mask[:, :k].any(axis=1).mean()),
+        float(mask[:, -k:].any(axis=1).mean()),
+        float(mask[-k:].any(axis=0).mean()),
     )
 
 
@@ -252,7 +256,9 @@ def choose(candidates: dict[str, np.ndarray], measure) -> tuple[str, list[Candid
     power = 3 if max(c.agreement for c in running) >= _DECISIVE else 0
     for candidate in running:
         candidate.score = (
-            candidate.consensus * candidate.contrast * (1.0 - candidate.side_contact) ** _CONTACT_POWER
+            candidate.consensus
+            * candidate.contrast
+            * (1.0 - candidate.side_contact) ** _CONTACT_POWER
             * candidate.agreement**power
         )
     scored.sort(key=lambda c: (not c.band, c.score), reverse=True)

@@ -198,7 +198,6 @@ def binarise(mask: np.ndarray) -> np.ndarray:
     return array >= 0.5 * (low + high)
 
 
-
 def clean_mask(mask: np.ndarray) -> np.ndarray:
     """Clean a (H, W) mask: morphology scaled to the object, main components, no holes.
 

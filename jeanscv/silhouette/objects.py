@@ -50,9 +50,7 @@ class PhotoObject:
     contour: np.ndarray
 
 
-def split_objects(
-    mask: np.ndarray, min_fraction: float = MIN_FRACTION, working_size: int = 640
-) -> list[PhotoObject]:
+def split_objects(mask: np.ndarray, min_fraction: float = MIN_FRACTION, working_size: int = 640) -> list[PhotoObject]:
     """Split a subject mask into its separate objects, largest first.
 
     Pieces are grouped on a copy with long side <= ``working_size`` (any coverage
@@ -137,9 +135,7 @@ def _distance_to(obj: PhotoObject, x: float, y: float) -> float:
     return float(np.min(np.hypot(obj.contour[:, 0] - x, obj.contour[:, 1] - y)))
 
 
-def object_at(
-    objects: list[PhotoObject], point, tolerance: float = POINT_TOLERANCE
-) -> int | None:
+def object_at(objects: list[PhotoObject], point, tolerance: float = POINT_TOLERANCE) -> int | None:
     """Index of the object a click at ``point`` = ``(x, y)`` picks, or None.
 
     The object under the point; else the nearest one within ``tolerance`` x the

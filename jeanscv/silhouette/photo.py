@@ -42,13 +42,12 @@ from .masks import (
     binarise,
     border_contact,
     clean,
-    clean_mask,
     disk,
+    downscale,
     fills_frame,
     outer_contour,
-    downscale,
-    rim_fraction,
     resize,
+    rim_fraction,
     shape_for,
 )
 from .scene import Scene, spectral_saliency
@@ -151,8 +150,13 @@ def _threshold(rgb: np.ndarray, threshold: float | None, scene: Scene) -> tuple[
             features = scene.features(cleaned)
             key = f"{name}@{sigma:.1f}"
             scores[key] = features["score"]
-            info = {"channel": name, "blur_sigma": round(sigma, 2), "threshold": float(value + 1),
-                    "polarity": polarity, "features": features}
+            info = {
+                "channel": name,
+                "blur_sigma": round(sigma, 2),
+                "threshold": float(value + 1),
+                "polarity": polarity,
+                "features": features,
+            }
             # Blurring smooths boundaries: only take it when clearly better.
             rank = features["score"] - (0.0 if sigma == sharp else _BLUR_MARGIN)
             if rank > best_rank:
@@ -239,11 +243,15 @@ def _grabcut_coarse(scene: Scene, variant: str, rect=None, hypothesis: bool = Fa
     if not hypothesis:
         return clean(_run_grabcut(image, labels, _COARSE_ITERATIONS))
     small = scene.hypothesis_size
-    cut = _run_grabcut(resize(image, small, cv2.INTER_AREA), resize(labels, small, cv2.INTER_NEAREST), _HYPOTHESIS_ITERATIONS)
+    cut = _run_grabcut(
+        resize(image, small, cv2.INTER_AREA), resize(labels, small, cv2.INTER_NEAREST), _HYPOTHESIS_ITERATIONS
+    )
     return scene.from_hypothesis(cut)
 
 
-def _refine(rgb: np.ndarray, coarse: np.ndarray, scene: Scene, variant: str, source_width: int | None = None) -> np.ndarray:
+def _refine(
+    rgb: np.ndarray, coarse: np.ndarray, scene: Scene, variant: str, source_width: int | None = None
+) -> np.ndarray:
     """Redo a coarse GrabCut mask at working resolution in a band around its boundary.
 
     Pixels farther than ~1.5 source pixels from the upsampled boundary keep their label
@@ -294,8 +302,10 @@ def _grabcut_coarse_best(scene: Scene, rect_work=None, hypothesis: bool = False)
         jobs = {"colour": {}, "texture": {}}
     variants = {}
     for variant, kwargs in jobs.items():
-        if variant == "texture" and "colour" in variants and (
-            variants["colour"][1]["score"] >= _CONFIDENT_SCORE or (hypothesis and scene.scale == "fine")
+        if (
+            variant == "texture"
+            and "colour" in variants
+            and (variants["colour"][1]["score"] >= _CONFIDENT_SCORE or (hypothesis and scene.scale == "fine"))
         ):
             continue
         try:
@@ -402,7 +412,8 @@ def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str
             if mask is not None:
                 coarse[name] = scene.from_hypothesis(mask)
     usable = {
-        name: m for name, m in coarse.items()
+        name: m
+        for name, m in coarse.items()
         if m.mean() >= MIN_AREA_FRACTION and not fills_frame(m) and rim_fraction(m) <= RIM_ONLY
     }
     if not usable:
@@ -412,9 +423,15 @@ def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str
     if best.contrast <= 0:
         raise JeansError("no object found to segment")
     details["candidates"] = {
-        c.name: {"consensus": round(c.consensus, 4), "contrast": round(c.contrast, 4),
-                 "agreement": round(c.agreement, 4), "side_contact": round(c.side_contact, 4),
-                 "band": c.band, "score": round(c.score, 4), "fraction": round(float(c.mask.mean()), 4)}
+        c.name: {
+            "consensus": round(c.consensus, 4),
+            "contrast": round(c.contrast, 4),
+            "agreement": round(c.agreement, 4),
+            "side_contact": round(c.side_contact, 4),
+            "band": c.band,
+            "score": round(c.score, 4),
+            "fraction": round(float(c.mask.mean()), 4),
+        }
         for c in ranked
     }
     details["chosen"] = winner
@@ -542,9 +559,7 @@ def segment(
     if given is not None:
         working = clean(_coverage(given, size))
     else:
-        working, used = _segment_photo(
-            downscale(rgb, size), method, threshold, rect_full, width / size[0], details
-        )
+        working, used = _segment_photo(downscale(rgb, size), method, threshold, rect_full, width / size[0], details)
 
     fraction = float(working.mean())
     details["area_fraction"] = round(fraction, 4)

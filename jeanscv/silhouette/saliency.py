@@ -73,9 +73,13 @@ class SuperpixelGraph:
         height, width = labels.shape
         ys, xs = np.mgrid[0:height, 0:width]
         scale = float(max(height, width))
-        centre = np.stack(
-            [np.bincount(flat, (xs.ravel() + 0.5) / scale, n), np.bincount(flat, (ys.ravel() + 0.5) / scale, n)], axis=1
-        ) / area[:, None]
+        centre = (
+            np.stack(
+                [np.bincount(flat, (xs.ravel() + 0.5) / scale, n), np.bincount(flat, (ys.ravel() + 0.5) / scale, n)],
+                axis=1,
+            )
+            / area[:, None]
+        )
         border = np.zeros((n, 4), bool)
         for side, strip in enumerate((labels[0], labels[-1], labels[:, 0], labels[:, -1])):
             border[np.unique(strip), side] = True
@@ -246,7 +250,10 @@ def saliency_map(
     foreground = contrast / (contrast.max() + 1e-9)
     # Equation 8: min sum w_bg s^2 + w_fg (s - 1)^2 + sum_adjacent w_ij (s_i - s_j)^2.
     i, j = graph.edges[:, 0], graph.edges[:, 1]
-    w = np.exp(-(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) ** 2) / (2 * _SIGMA_COLOUR**2)) + _SMOOTH_FLOOR
+    w = (
+        np.exp(-(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) ** 2) / (2 * _SIGMA_COLOUR**2))
+        + _SMOOTH_FLOOR
+    )
     from scipy.sparse import coo_matrix
     from scipy.sparse.linalg import spsolve
 

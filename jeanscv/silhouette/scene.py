@@ -109,7 +109,10 @@ def local_contrast(moments: LabMoments, mask: np.ndarray, floor: float = 4.0) ->
     # kernel's reach (OpenCV's float kernels reach 4 sigma), gives the same values there.
     rows, cols = np.nonzero(boundary)
     reach = int(np.ceil(4 * moments.sigma)) + 1
-    box = (slice(max(rows.min() - reach, 0), rows.max() + reach + 1), slice(max(cols.min() - reach, 0), cols.max() + reach + 1))
+    box = (
+        slice(max(rows.min() - reach, 0), rows.max() + reach + 1),
+        slice(max(cols.min() - reach, 0), cols.max() + reach + 1),
+    )
     at = rows - box[0].start, cols - box[1].start  # the boundary pixels in the box
     inside = mask[box].astype(np.float32)
     inside3 = cv2.merge([inside] * 3)  # cv2.multiply: numpy's broadcast product is 10x slower

@@ -57,9 +57,7 @@ def _component_at(mask: np.ndarray, x: int, y: int) -> np.ndarray:
     return fill_holes(labels == label)
 
 
-def segment_at_point(
-    image: np.ndarray, point: tuple[float, float], *, working_size: int = 480
-) -> Segmentation:
+def segment_at_point(image: np.ndarray, point: tuple[float, float], *, working_size: int = 480) -> Segmentation:
     """Segment the object under ``point`` = ``(x, y)`` image pixels of ``image``.
 
     Returns a :class:`Segmentation` (method ``"point"``) at the image's resolution.
