@@ -42,6 +42,7 @@ from .masks import (
     binarise,
     border_contact,
     clean,
+    clean_mask,
     disk,
     downscale,
     fills_frame,
@@ -603,3 +604,6 @@ def _segment_photo(
         mask, info = _grabcut(rgb, scene, rect_work)
     details[method] = info
     return mask, method
+
+
+__all__ = ["Segmentation", "clean_mask", "segment"]
