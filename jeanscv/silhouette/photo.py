@@ -380,11 +380,21 @@ def _grabcut_hypothesis(scene: Scene) -> tuple[str, np.ndarray | None]:
     return variant, mask
 
 
-def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str]:
-    """Every hypothesis at coarse resolution, the consensus pick
-    (:mod:`jeanscv.silhouette.consensus`) at working resolution: the threshold split as
-    it is, a GrabCut hypothesis refined along its boundary."""
-    from .consensus import choose, hypothesis_labels
+@dataclass
+class Hypotheses:
+    """auto's hypotheses of one scene: ``coarse`` masks at the scene's size by name (the
+    usable ones: not tiny, not filling the frame, not a rim), the threshold split at
+    working size, and the GrabCut hypothesis's variant."""
+
+    coarse: dict[str, np.ndarray]
+    threshold_mask: np.ndarray | None
+    grabcut_variant: str
+
+
+def hypotheses(rgb: np.ndarray, scene: Scene, details: dict) -> Hypotheses:
+    """Cut every hypothesis of auto at coarse resolution (``details`` gets the threshold's
+    choice). Raises JeansError when none is usable."""
+    from .consensus import hypothesis_labels
 
     small = scene.hypothesis()
     labelings = hypothesis_labels(small, scene.detail())
@@ -419,6 +429,17 @@ def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str
     }
     if not usable:
         raise JeansError("no object found to segment")
+    return Hypotheses(usable, threshold_mask, grabcut_variant)
+
+
+def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str]:
+    """Every hypothesis at coarse resolution, the consensus pick
+    (:mod:`jeanscv.silhouette.consensus`) at working resolution: the threshold split as
+    it is, a GrabCut hypothesis refined along its boundary."""
+    from .consensus import choose
+
+    found = hypotheses(rgb, scene, details)
+    usable = found.coarse
     winner, ranked = choose(usable, scene.measures)
     best = ranked[0]
     if best.contrast <= 0:
@@ -446,8 +467,8 @@ def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str
         + ("; the hypotheses mostly disagree, so the subject is uncertain" if best.uncertain else "")
     )
     if winner == "threshold":
-        return threshold_mask, "threshold"
-    variant = grabcut_variant if winner == "grabcut" else "colour"
+        return found.threshold_mask, "threshold"
+    variant = found.grabcut_variant if winner == "grabcut" else "colour"
     return _refine(rgb, usable[winner], scene, variant, source_width=scene.hypothesis_size[0]), "grabcut"
 
 
