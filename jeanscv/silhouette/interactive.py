@@ -26,6 +26,18 @@ WORKING_SIZE = 480
 #: Long side of the copy auto's hypotheses are made from (as :func:`photo.segment`).
 SCENE_SIZE = 640
 _ITERATIONS = 3
+#: Radius of a click's hard seed, as a fraction of the working copy's short side.
+_SEED_FRACTION = 0.012
+#: A corrective click flips a region at most this many times its distance to the boundary.
+_REACH = 2.0
+#: Weight of the click's relative depth against agreement when the first click chooses.
+_DEPTH_WEIGHT = 0.5
+#: A corrective click re-decides a window this many times its radius (half-width).
+_WINDOW = 3.0
+#: Colour steps (Lab units between neighbours) the flood fill tries, in order.
+_FLOOD_STEPS = (1, 2, 3, 4, 6, 8, 11, 16)
+#: A flood that grows this many times at once has leaked through an edge.
+_LEAK = 4.0
 
 Point = tuple[float, float]
 
@@ -60,6 +72,8 @@ class ClickSession:
         except JeansError:
             self._hypotheses = {}
         self._cache: dict[tuple, np.ndarray] = {}
+        self._seed_radius = max(1, round(_SEED_FRACTION * min(self.size)))
+        self._smooth_lab = cv2.cvtColor(cv2.GaussianBlur(self.rgb, (0, 0), 1.0), cv2.COLOR_RGB2LAB)
 
     # ------------------------------------------------------------------ coordinates
     def _to_working(self, point: Point) -> tuple[int, int]:
@@ -121,72 +135,153 @@ class ClickSession:
         return mask
 
     def _first(self, point: tuple[int, int]) -> np.ndarray:
-        """The mask after one positive click."""
+        """The mask after one positive click: of auto's hypotheses that hold the click
+        (all their pieces: a subject may come in several) and a GrabCut seeded at the
+        click, the one the others agree with most."""
         x, y = point
-        candidates = {}
-        for name, mask in self._hypotheses.items():
-            if mask[y, x]:
-                candidates[name] = _component_at(mask, x, y)
-        seeded = self._cut(np.full(self.rgb.shape[:2], cv2.GC_PR_BGD, np.uint8), [point], [], point)
+        candidates = {name: mask for name, mask in self._hypotheses.items() if mask[y, x]}
+        seeded = self._cut(np.full(self.rgb.shape[:2], cv2.GC_PR_BGD, np.uint8), [point], [])
         candidates["click"] = seeded
         if len(candidates) == 1:
             return seeded
         names = list(candidates)
-        scores = {a: np.mean([_iou(candidates[a], candidates[b]) for b in names if b != a]) for a in names}
-        return candidates[max(names, key=lambda n: (scores[n], n == "click"))]
+        # Agreement with the others, and how deep inside the click lies (a person clicks
+        # the middle of the thing): a mask the click only grazes is likely the wrong one.
+        scores = {
+            a: np.mean([_iou(candidates[a], candidates[b]) for b in names if b != a])
+            + _DEPTH_WEIGHT * _relative_depth(candidates[a], x, y)
+            for a in names
+        }
+        best = candidates[max(names, key=lambda n: (scores[n], n == "click"))]
+        return _constrained(best, [point], [])
 
     def _step(self, previous: np.ndarray, clicks: tuple) -> np.ndarray:
-        """The mask after one more click, from the mask before it."""
+        """The mask after one more click, from the mask before it.
+
+        The click says that the region around it is on the wrong side. Its radius ``r``
+        is the click's distance to the current mask's boundary; the region is
+        flood-filled from the click on the wrong side (:meth:`_flood`) and handed to the
+        other side as hard seeds. GrabCut decides again inside a window of ``_WINDOW r``
+        around the click, with colour models learned there; the window's rim and
+        everything outside it keep the current mask, so an edit stays where it was asked.
+        """
         sign, (x, y) = clicks[-1]
-        labels = np.where(previous, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-        # The click says its neighbourhood was wrong, as far as the nearest boundary of
-        # the current mask reaches: flip it there.
-        inside = previous if sign == "-" else ~previous
-        distance = cv2.distanceTransform(np.pad(inside, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1]
-        radius = max(2.0, float(distance[y, x]))
-        zone = np.zeros_like(labels)
-        cv2.circle(zone, (x, y), int(round(radius)), 1, -1)
-        zone = zone.astype(bool) & inside
-        labels[zone] = cv2.GC_PR_FGD if sign == "+" else cv2.GC_PR_BGD
+        wrong = previous if sign == "-" else ~previous
         pos = [p for s, p in clicks if s == "+"]
         neg = [p for s, p in clicks if s == "-"]
-        return self._cut(labels, pos, neg, pos[0])
+        radius = _depth(wrong, x, y)
+        region = np.zeros(wrong.shape, np.uint8)
+        cv2.circle(region, (x, y), int(round(radius)), 1, -1)
+        region = region.astype(bool) & wrong
+        height, width = previous.shape
+        reach = int(np.ceil(_WINDOW * radius)) + 2
+        x0, x1 = max(0, x - reach), min(width, x + reach + 1)
+        y0, y1 = max(0, y - reach), min(height, y + reach + 1)
+        crop = previous[y0:y1, x0:x1]
+        labels = np.where(crop, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
+        rim = np.zeros(labels.shape, bool)
+        rim[0, :] |= y0 > 0
+        rim[-1, :] |= y1 < height
+        rim[:, 0] |= x0 > 0
+        rim[:, -1] |= x1 < width
+        labels[rim] = np.where(crop[rim], cv2.GC_FGD, cv2.GC_BGD)
+        labels[region[y0:y1, x0:x1]] = cv2.GC_PR_FGD if sign == "+" else cv2.GC_PR_BGD
+        inside = [(s, (px - x0, py - y0)) for s, (px, py) in clicks if x0 <= px < x1 and y0 <= py < y1]
+        local_pos = [p for s, p in inside if s == "+"]
+        local_neg = [p for s, p in inside if s == "-"]
+        cut = _seeded_grabcut(self.rgb[y0:y1, x0:x1], labels, local_pos, local_neg, self._seed_radius)
+        mask = previous.copy()
+        mask[y0:y1, x0:x1] = cut
+        return _constrained(mask, pos, neg)
 
-    def _cut(self, labels: np.ndarray, pos: list, neg: list, anchor) -> np.ndarray:
-        """GrabCut from ``labels`` with the clicks as hard seeds; the components holding a
-        positive click are kept, holes filled unless a negative click is in one."""
-        labels = labels.copy()
-        short = min(labels.shape)
-        radius = max(1, round(0.012 * short))
-        for sign, points in ((cv2.GC_FGD, pos), (cv2.GC_BGD, neg)):
-            others = neg if sign == cv2.GC_FGD else pos
-            for x, y in points:
-                r = radius
-                if others:
-                    gap = min(np.hypot(x - ox, y - oy) for ox, oy in others)
-                    r = max(0, min(r, int(gap / 2) - 1))
-                cv2.circle(labels, (x, y), r, int(sign), -1)
-                labels[y, x] = sign
-        if not (labels == cv2.GC_BGD).any() and not (labels == cv2.GC_PR_BGD).any():
-            labels[0, :] = labels[-1, :] = labels[:, 0] = labels[:, -1] = cv2.GC_PR_BGD
-        try:
-            cut = _run_grabcut(self.rgb, labels, _ITERATIONS)
-        except JeansError:
-            cut = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
-        count, components = cv2.connectedComponents(cut.astype(np.uint8), connectivity=8)
-        keep = {components[y, x] for x, y in pos} - {0}
-        mask = np.isin(components, list(keep)) if keep else np.zeros_like(cut)
-        filled = fill_holes(mask)
-        holes = filled & ~mask
-        if holes.any() and neg:
-            count, hole_labels = cv2.connectedComponents(holes.astype(np.uint8), connectivity=4)
-            drop = {hole_labels[y, x] for x, y in neg} - {0}
-            filled &= ~np.isin(hole_labels, list(drop))
-        for x, y in pos:
-            filled[y, x] = True
-        for x, y in neg:
-            filled[y, x] = False
-        return filled
+    def _flood(self, wrong: np.ndarray, point: tuple[int, int], radius: float, others: list) -> np.ndarray:
+        """The region around ``point`` on the ``wrong`` side that the click flips: a
+        flood fill in Lab (neighbour to neighbour) with the largest colour step whose
+        region stays within ``_REACH * radius`` of the click, away from clicks of the
+        other sign, and does not jump in area (a jump means it got through an edge)."""
+        x, y = point
+        height, width = wrong.shape
+        allowed = np.zeros((height, width), np.uint8)
+        cv2.circle(allowed, (x, y), int(round(_REACH * radius)), 1, -1)
+        allowed &= wrong.astype(np.uint8)
+        for ox, oy in others:
+            cv2.circle(allowed, (ox, oy), self._seed_radius, 0, -1)
+        best = np.zeros((height, width), bool)
+        cv2.circle(best.view(np.uint8), (x, y), self._seed_radius, 1, -1)
+        best &= wrong
+        for step in _FLOOD_STEPS:
+            fill_mask = np.pad(1 - allowed, 1)
+            flags = 4 | cv2.FLOODFILL_MASK_ONLY | (2 << 8)
+            cv2.floodFill(self._smooth_lab, fill_mask, (x, y), 0, (step,) * 3, (step,) * 3, flags)
+            region = fill_mask[1:-1, 1:-1] == 2
+            if region.sum() > _LEAK * max(best.sum(), np.pi * (radius / 2) ** 2):
+                break
+            best |= region
+        return best
+
+    def _cut(self, labels: np.ndarray, pos: list, neg: list) -> np.ndarray:
+        """GrabCut of the whole working copy from ``labels`` with the clicks as hard seeds,
+        constrained (:func:`_constrained`)."""
+        return _constrained(_seeded_grabcut(self.rgb, labels, pos, neg, self._seed_radius), pos, neg)
+
+
+def _seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, radius: int) -> np.ndarray:
+    """GrabCut from ``labels`` with discs of ``radius`` at the clicks as hard seeds (a disc
+    stops short of halfway to the nearest click of the other sign)."""
+    labels = labels.copy()
+    for sign, points, others in ((cv2.GC_FGD, pos, neg), (cv2.GC_BGD, neg, pos)):
+        for x, y in points:
+            r = radius
+            if others:
+                gap = min(np.hypot(x - ox, y - oy) for ox, oy in others)
+                r = max(0, min(r, int(gap / 2) - 1))
+            cv2.circle(labels, (x, y), r, int(sign), -1)
+            labels[y, x] = sign
+    has_fg = ((labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)).any()
+    has_bg = ((labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)).any()
+    if not (has_fg and has_bg) or min(labels.shape) < 4:
+        return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
+    try:
+        return _run_grabcut(rgb, labels, _ITERATIONS)
+    except JeansError:
+        return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
+
+
+def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
+    """``mask`` made to obey the clicks: the pieces holding a positive click (and the
+    pieces at least a tenth of the largest of those: a subject may come in several),
+    holes filled unless a negative click is in one; every positive click in, every
+    negative click out."""
+    count, components = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    keep = {int(components[y, x]) for x, y in pos} - {0}
+    if keep:
+        areas = np.bincount(components.ravel(), minlength=count)
+        floor = 0.1 * max(areas[k] for k in keep)
+        keep |= {k for k in range(1, count) if areas[k] >= floor}
+    kept = np.isin(components, list(keep)) if keep else np.zeros_like(mask, dtype=bool)
+    filled = fill_holes(kept)
+    holes = filled & ~kept
+    if holes.any() and neg:
+        _, hole_labels = cv2.connectedComponents(holes.astype(np.uint8), connectivity=4)
+        drop = {int(hole_labels[y, x]) for x, y in neg} - {0}
+        filled &= ~np.isin(hole_labels, list(drop))
+    for x, y in pos:
+        filled[y, x] = True
+    for x, y in neg:
+        filled[y, x] = False
+    return filled
+
+
+def _depth(region: np.ndarray, x: int, y: int) -> float:
+    """Distance (pixels, at least 2) from (x, y) to the boundary of ``region``."""
+    distance = cv2.distanceTransform(np.pad(region, 1).astype(np.uint8), cv2.DIST_L2, 5)
+    return max(2.0, float(distance[y + 1, x + 1]))
+
+
+def _relative_depth(mask: np.ndarray, x: int, y: int) -> float:
+    """The click's distance to the mask's boundary over the mask's deepest distance."""
+    distance = cv2.distanceTransform(np.pad(mask, 1).astype(np.uint8), cv2.DIST_L2, 5)
+    return float(distance[y + 1, x + 1]) / max(float(distance.max()), 1.0)
 
 
 def _component_at(mask: np.ndarray, x: int, y: int) -> np.ndarray:
