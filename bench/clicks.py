@@ -26,7 +26,7 @@ import numpy as np
 from PIL import Image
 
 from jeanscv.io.image import load_image
-from jeanscv.silhouette.interactive import ClickSession
+from jeanscv.silhouette.interactive import ClickSession, simulated_click
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "real_photos"
@@ -45,26 +45,6 @@ def photo_pairs(folders: list[Path]) -> list[tuple[str, Path, Path]]:
     return pairs
 
 
-def _interior_distance(region: np.ndarray) -> np.ndarray:
-    """Distance of each pixel of ``region`` to its boundary (the image border counts)."""
-    padded = np.pad(region.astype(np.uint8), 1)
-    return cv2.distanceTransform(padded, cv2.DIST_L2, 5)[1:-1, 1:-1]
-
-
-def next_click(reference: np.ndarray, predicted: np.ndarray | None) -> tuple[bool, tuple[float, float]]:
-    """(positive?, (x, y)) of the protocol's next click."""
-    if predicted is None:
-        distance = _interior_distance(reference)
-        y, x = np.unravel_index(np.argmax(distance), distance.shape)
-        return True, (x + 0.5, y + 0.5)
-    missed = _interior_distance(reference & ~predicted)
-    taken = _interior_distance(~reference & predicted)
-    positive = missed.max() >= taken.max()
-    distance = missed if positive else taken
-    y, x = np.unravel_index(np.argmax(distance), distance.shape)
-    return bool(positive), (x + 0.5, y + 0.5)
-
-
 def iou(a: np.ndarray, b: np.ndarray) -> float:
     union = np.count_nonzero(a | b)
     return np.count_nonzero(a & b) / union if union else 1.0
@@ -80,7 +60,7 @@ def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICK
     ious, seconds, made = [], [], []
     predicted = None
     for _ in range(clicks):
-        sign, point = next_click(reference, predicted)
+        sign, point = simulated_click(reference, predicted)
         (positive if sign else negative).append(point)
         made.append((sign, point))
         start = time.perf_counter()

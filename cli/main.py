@@ -26,12 +26,15 @@ Examples:
   jeanscv horse.png --json --svg --gif  sidecars: report, vector overlay, animation
   jeanscv cat.jpg --mask cat_mask.png   your own mask instead of the segmentation
   jeanscv pets.jpg --objects all        jeans on every separate object
-  jeanscv pets.jpg --point 420,310      jeans on the object under that pixel
+  jeanscv pets.jpg --point 420,310      jeans on the object under that pixel (a click)
+  jeanscv pets.jpg --point 420,310 --background-point 90,40   ...and not on that
+  jeanscv pets.jpg --clicks pets.clicks.json                   replay saved clicks
   jeanscv car.jpg --posture any         jeans in any posture, lying ones too
 
 \b
 Outputs are written next to each input as NAME.jeans.EXT (or under -o DIR).
 Existing outputs are skipped unless --overwrite, so an interrupted run resumes.
+A photo with clicks saved beside it (NAME.clicks.json, by jeanscv serve) uses them.
 Exit status: 0 all done, 1 some input failed, 2 usage error, 130/143 interrupted.
 """
 
@@ -171,7 +174,23 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     multiple=True,
     callback=_parse_points,
     metavar="X,Y",
-    help="Put jeans on the object under this pixel of the photo, like a click (repeatable; one input).",
+    help="A click on the object that should wear the jeans (pixels of the photo; repeatable: "
+    "more clicks refine the same object; one input).",
+)
+@click.option(
+    "--background-point",
+    "background_points",
+    multiple=True,
+    callback=_parse_points,
+    metavar="X,Y",
+    help="A click on something that is not that object (repeatable; with --point).",
+)
+@click.option(
+    "--clicks",
+    "clicks_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    metavar="FILE.json",
+    help="Replay a clicks file (one or several objects; the web page saves them; one input).",
 )
 @click.option(
     "--style",
@@ -279,6 +298,8 @@ def _main(
     rect,
     objects,
     points,
+    background_points,
+    clicks_file,
     style,
     clip,
     top,
@@ -325,6 +346,10 @@ def _main(
         raise _usage("--mask needs exactly one input image")
     if points and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
+    if background_points and not points:
+        raise _usage("--background-point needs a --point on the object too")
+    if clicks_file is not None and len(found.jobs) + len(found.problems) != 1:
+        raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
     options = Options(
         preset=preset,
         posture=posture,
@@ -339,6 +364,8 @@ def _main(
         rect=rect,
         objects=objects,
         points=points,
+        background_points=background_points,
+        clicks=None if clicks_file is None else str(clicks_file),
         style=style,
         clip=clip,
         max_pixels=max_pixels,
@@ -406,7 +433,7 @@ def _main(
     outcomes: dict[int, Outcome] = {}
     pending = []
     for job in found.jobs:
-        if wanted_outputs(job, overwrite):
+        if wanted_outputs(job, options):
             pending.append(job)
         else:
             outcome = Outcome(

@@ -33,6 +33,8 @@ class Options:
     rect: tuple[int, int, int, int] | None = None
     objects: str = "one"
     points: tuple[tuple[float, float], ...] = ()
+    background_points: tuple[tuple[float, float], ...] = ()
+    clicks: str | None = None  # a clicks file (--clicks)
     style: str = "denim"
     clip: bool = True
     max_pixels: int = 100_000_000
@@ -97,9 +99,39 @@ def failure_reason(exc: BaseException) -> str:
     return f"unexpected error ({type(exc).__name__}{': ' + detail if detail else ''})"
 
 
-def wanted_outputs(job: Job, overwrite: bool) -> dict[str, Path]:
-    """The outputs to write: all with ``overwrite``, else those that do not exist yet."""
-    return {k: p for k, p in job.outputs.items() if overwrite or not p.exists()}
+def clicks_file(job: Job, options: Options) -> Path | None:
+    """The clicks file an input uses: ``--clicks``, else the clicks saved beside the photo
+    (``NAME.clicks.json``, by ``jeanscv serve``) unless ``--point`` or ``--mask`` say
+    what the subject is."""
+    from jeanscv.clicks import sidecar_path
+
+    if options.clicks is not None:
+        return Path(options.clicks)
+    if options.points or options.mask:
+        return None
+    sidecar = sidecar_path(job.path)
+    return sidecar if sidecar.is_file() else None
+
+
+def wanted_outputs(job: Job, options: Options) -> dict[str, Path]:
+    """The outputs to write: all with ``overwrite``, else those that do not exist yet or
+    are older than the clicks saved beside the photo (the subject was fixed since)."""
+    if options.overwrite:
+        return dict(job.outputs)
+    saved = clicks_file(job, options) if options.clicks is None else None
+    try:
+        clicked = saved.stat().st_mtime if saved is not None else None
+    except OSError:
+        clicked = None
+    wanted = {}
+    for kind, path in job.outputs.items():
+        try:
+            done = path.stat().st_mtime
+        except OSError:
+            done = None
+        if done is None or (clicked is not None and done < clicked):
+            wanted[kind] = path
+    return wanted
 
 
 def _encode(path: Path, pixels, result):
@@ -157,8 +189,18 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
 
     from .extras import optimisation_gif, svg_document
 
-    targets = wanted_outputs(job, options.overwrite)
+    targets = wanted_outputs(job, options)
     mask = load_mask(options.mask, options.max_pixels) if options.mask else None
+    clicks = None
+    saved = clicks_file(job, options)
+    if saved is not None:
+        from jeanscv.clicks import read_clicks
+        from jeanscv.errors import JeansError
+
+        try:
+            clicks = read_clicks(saved)
+        except JeansError as exc:
+            raise JeansError(f"clicks file {saved.name}: {exc}") from None
     result = api.apply_jeans(
         job.path,
         garment=options.garment,
@@ -178,6 +220,8 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         raw_half_size=options.raw_half_size,
         objects=options.objects,
         points=list(options.points),
+        background_points=list(options.background_points),
+        clicks=clicks,
         posture=options.posture,
         backend=options.backend,
     )
@@ -194,7 +238,7 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         "objects": [_object_info(obj) for obj in result.objects],
     }
     subject = result.silhouette.details
-    if subject.get("uncertain") and not options.points:
+    if subject.get("uncertain") and not options.points and clicks is None:
         outcome.info["note"] = (
             f"unsure which thing is the subject (the segmentation's hypotheses overlap by {subject['consensus']:.2f} "
             "on average); if the jeans missed it, click it with --point X,Y"

@@ -202,12 +202,33 @@ def extract_silhouette(
     )
 
 
+def _object_clicks(points, background_points, clicks) -> list:
+    """Every object's clicks (:class:`jeanscv.clicks.ObjectClicks`): ``points`` and
+    ``background_points`` are one object's, ``clicks`` a :class:`jeanscv.clicks.Clicks`
+    or a list of per-object ``{"positive": [...], "negative": [...]}``."""
+    from .clicks import Clicks, ObjectClicks, parse_clicks
+
+    objects = []
+    if points or background_points:
+        if not points:
+            raise JeansError("a background click needs a positive click on the object too")
+        objects.append(ObjectClicks(tuple(points), tuple(background_points or ())))
+    if clicks is not None:
+        if isinstance(clicks, Clicks):
+            objects += clicks.objects
+        else:
+            objects += parse_clicks({"format": "jeanscv-clicks", "version": 1, "objects": list(clicks)}).objects
+    return objects
+
+
 def extract_silhouettes(
     image: np.ndarray,
     method: str = "auto",
     *,
     objects: str = "one",
     points: list[tuple[float, float]] | None = None,
+    background_points: list[tuple[float, float]] | None = None,
+    clicks=None,
     threshold: float | None = None,
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
@@ -216,41 +237,83 @@ def extract_silhouettes(
 
     ``objects="one"``: the main subject (as :func:`extract_silhouette`); ``"all"``: every
     separate object of the subject mask, largest first (specks under 10% of the largest
-    are dropped). ``points``: ``(x, y)`` image pixels, like clicks: each picks the object
-    under it (or within 2% of the image's long side of it), else, or when the automatic
-    subject is uncertain (``details["uncertain"]``: its hypotheses disagreed), the object
-    around it is segmented by GrabCut seeded at the point (method ``"point"``); the
-    picked objects come first, in point order, and with ``"all"`` the other objects follow. Every
-    silhouette's ``details`` holds its ``box`` (x, y, w, h) and, when a point picked
-    it, the ``point``.
-    """
-    from .silhouette.objects import check_point, object_at, split_objects
-    from .silhouette.photo import binarise, segment
-    from .silhouette.seeded import segment_at_point
+    are dropped).
 
+    Clicks fix the subject (``(x, y)`` image pixels): ``points`` are the positive clicks
+    of one object and ``background_points`` its negative ones; ``clicks`` gives several
+    objects, each with its own clicks (a :class:`jeanscv.clicks.Clicks`, or a list of
+    ``{"positive": [...], "negative": [...]}``), after the object of ``points``. Each
+    clicked object is segmented by a :class:`~jeanscv.silhouette.interactive.ClickSession`
+    (method ``"clicks"``): its mask holds every positive click and none of the negative
+    ones. The clicked objects come first, in order; with ``"all"`` the automatic objects
+    that they do not cover follow. With a user ``mask``, ``points`` pick the mask's pieces
+    instead. Every silhouette's ``details`` holds its ``box`` (x, y, w, h); a clicked
+    one also its ``clicks`` and ``point`` (its first positive click).
+    """
     if objects not in OBJECTS:
         raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
     pixels = np.asarray(image)
+    if mask is not None:
+        if background_points or clicks is not None:
+            raise JeansError("clicks refine the automatic segmentation: they cannot be combined with a mask")
+        return _mask_objects(pixels, method, objects, points, threshold, rect, mask)
+    wanted = _object_clicks(points, background_points, clicks)
+    if not wanted:
+        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect)
+        found = split_objects(main.mask) if objects == "all" else []
+        if len(found) <= 1:
+            main.details["box"] = list(_box_of(main))
+            return [main]
+        return [_object_silhouette(obj, main) for obj in found]
+    from .clicks import Clicks
+    from .silhouette.interactive import ClickSession
+
+    height, width = pixels.shape[:2]
+    Clicks(tuple(wanted)).check((width, height))
+    session = ClickSession(pixels)
+    chosen = []
+    for obj in wanted:
+        silhouette = _framed(session.segment(obj.positive, obj.negative), obj.positive[0])
+        silhouette.details["clicks"] = obj.to_json()
+        chosen.append(silhouette)
+    if objects == "all":
+        try:
+            main = extract_silhouette(pixels, method, threshold=threshold, rect=rect)
+        except JeansError:
+            return chosen
+        covered = np.zeros(pixels.shape[:2], bool)
+        for silhouette in chosen:
+            covered |= silhouette.mask
+        for obj in split_objects(main.mask):
+            # An automatic object mostly under a clicked one is that object again.
+            if np.count_nonzero(obj.mask & ~covered) > 0.5 * obj.area:
+                chosen.append(_object_silhouette(obj, main))
+    return chosen
+
+
+def split_objects(mask: np.ndarray):
+    """The separate objects of a subject mask (:func:`jeanscv.silhouette.objects.split_objects`)."""
+    from .silhouette.objects import split_objects as _split
+
+    return _split(mask)
+
+
+def _mask_objects(pixels, method, objects, points, threshold, rect, mask) -> list[Silhouette]:
+    """A user mask's objects: with ``points``, the pieces under them first."""
+    from .silhouette.objects import check_point, object_at
+    from .silhouette.photo import binarise, segment
+
     clicks = [check_point(point, pixels.shape[:2]) for point in points or ()]
-    try:
-        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, mask=mask)
-    except JeansError:
-        if not clicks or mask is not None:
-            raise
-        main = None  # nothing found automatically: every point segments its own object
-    found = []
-    if clicks or objects == "all":
-        # A given mask is split before its cleaning, which keeps only pieces of at least
-        # a quarter of the largest one's size: the user said what the objects are.
-        subject = binarise(mask) if mask is not None else None if main is None else main.mask
-        found = [] if subject is None or not subject.any() else split_objects(subject)
+    main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, mask=mask)
+    subject = binarise(mask)
+    # A given mask is split before its cleaning, which keeps only pieces of at least a
+    # quarter of the largest one's size: the user said what the objects are.
+    found = split_objects(subject) if subject.any() and (clicks or objects == "all") else []
     if not clicks and len(found) <= 1:
         main.details["box"] = list(_box_of(main))
         return [main]
 
     def pick(obj, point=None) -> Silhouette | None:
-        if mask is None:
-            return _object_silhouette(obj, main, point)
         try:
             return _framed(segment(pixels, "mask", mask=obj.mask), point)
         except JeansError:  # a speck of the user's mask, too small to segment
@@ -260,17 +323,11 @@ def extract_silhouettes(
 
     chosen: list[Silhouette | None] = []
     picked: set[int] = set()
-    # When auto's hypotheses disagreed, its subject may be a wrong blob that holds the
-    # clicked thing (players joined by the boards behind them): the click is then
-    # segmented on its own, and the blob under it gets no garment of its own.
-    uncertain = main is not None and bool(main.details.get("uncertain"))
     for point in clicks:
         index = object_at(found, point)
-        if index is None or uncertain:
-            if index is not None:
-                picked.add(index)
-            chosen.append(_framed(segment_at_point(pixels, point), point))
-        elif index not in picked:
+        if index is None:
+            raise JeansError(f"no object of the mask at point ({point[0]:g}, {point[1]:g})")
+        if index not in picked:
             picked.add(index)
             chosen.append(pick(found[index], point))
     if objects == "all":
@@ -456,6 +513,8 @@ class FittedObject:
         }
         if "point" in self.silhouette.details:
             entry["point"] = [_round(v) for v in self.silhouette.details["point"]]
+        if "clicks" in self.silhouette.details:
+            entry["clicks"] = self.silhouette.details["clicks"]
         return entry
 
 
@@ -519,6 +578,10 @@ class JeansResult:
         subject = {key: self.silhouette.details[key] for key in SUBJECT_KEYS if key in self.silhouette.details}
         if subject:
             report["subject"] = subject
+        clicked = [entry["clicks"] for entry in entries if "clicks" in entry]
+        if clicked:
+            # The clicks used, as a clicks file holds them (pixels of the decoded photo).
+            report["clicks"] = {"objects": clicked}
         return report
 
 
@@ -545,12 +608,14 @@ def prepare_input(
     raw_half_size: bool = False,
     objects: str = "one",
     points: list[tuple[float, float]] | None = None,
+    background_points: list[tuple[float, float]] | None = None,
+    clicks=None,
 ) -> tuple[list[Silhouette], str, np.ndarray | None, object | None]:
     """Decode and segment an input: ``(silhouettes, kind, pixels, loaded_image)``.
 
-    Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``
-    are pixels of the photo as displayed, also for a RAW file decoded at half size);
-    silhouette drawings and SVGs give their one shape.
+    Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``,
+    ``background_points`` and ``clicks`` are pixels of the photo as displayed, also for
+    a RAW file decoded at half size); silhouette drawings and SVGs give their one shape.
     """
     if kind not in KINDS:
         raise JeansError(f"unknown input kind {kind!r} (use {', '.join(KINDS)})")
@@ -574,10 +639,28 @@ def prepare_input(
             if alpha is None:
                 raise JeansError("not a silhouette image (no alpha and not two-toned)")
             return [silhouette_from_alpha(alpha, "drawing")], "silhouette", pixels, loaded
-    if points and loaded is not None and tuple(loaded.original_size) != pixels.shape[1::-1]:
+    if mask is None and (points or background_points or clicks is not None):
+        # Checked against the photo as displayed, then scaled to the decoded copy.
+        from .clicks import Clicks
+
+        shown = tuple(loaded.original_size) if loaded is not None else pixels.shape[1::-1]
+        wanted = Clicks(tuple(_object_clicks(points, background_points, clicks)), getattr(clicks, "image_size", None))
+        wanted.check(shown)
+        wanted = Clicks(wanted.objects, shown)
+        points, background_points = None, None
+        clicks = wanted.scaled(pixels.shape[1::-1]) if shown != pixels.shape[1::-1] else wanted
+    elif points and loaded is not None and tuple(loaded.original_size) != pixels.shape[1::-1]:
         points = _to_decoded(points, loaded.original_size, pixels.shape[1::-1])
     silhouettes = extract_silhouettes(
-        pixels, silhouette_method, objects=objects, points=points, threshold=threshold, rect=rect, mask=mask
+        pixels,
+        silhouette_method,
+        objects=objects,
+        points=points,
+        background_points=background_points,
+        clicks=clicks,
+        threshold=threshold,
+        rect=rect,
+        mask=mask,
     )
     return silhouettes, "photo", pixels, loaded
 
@@ -611,6 +694,8 @@ def apply_jeans(
     raw_half_size: bool = False,
     objects: str = "one",
     points: list[tuple[float, float]] | None = None,
+    background_points: list[tuple[float, float]] | None = None,
+    clicks=None,
     posture: str = "upright",
     backend: str | None = None,
 ) -> JeansResult:
@@ -619,8 +704,10 @@ def apply_jeans(
     ``source``: a path (photo, RAW, silhouette PNG or SVG) or a uint8 image array.
     Silhouette drawings give the paper's figure (black shape, blue jeans on white);
     photos get denim painted on at full resolution. ``objects="all"`` gives every
-    separate object of a photo its own garment; ``points`` ((x, y) pixels, like clicks)
-    pick the objects (see :func:`extract_silhouettes`). RAW files are decoded at the
+    separate object of a photo its own garment; ``points`` and ``background_points``
+    ((x, y) pixels of the photo as displayed) are one object's positive and negative
+    clicks, ``clicks`` (a :class:`jeanscv.clicks.Clicks`) several objects' (see
+    :func:`extract_silhouettes`). RAW files are decoded at the
     camera's full size unless ``raw_half_size``. ``posture``: ``upright`` or ``any`` (see
     :func:`fit`). ``backend``: as in :func:`fit`.
     """
@@ -631,7 +718,18 @@ def apply_jeans(
     if _fast.backend(backend, resolve_device(device)) == "fast":
         _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
     silhouettes, resolved_kind, pixels, loaded = prepare_input(
-        source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_half_size, objects, points
+        source,
+        kind,
+        silhouette_method,
+        threshold,
+        rect,
+        mask,
+        max_pixels,
+        raw_half_size,
+        objects,
+        points,
+        background_points,
+        clicks,
     )
     fitted = []
     image = pixels

@@ -18,7 +18,7 @@ import numpy as np
 
 from jeanscv.errors import JeansError
 
-from .masks import downscale, fill_holes, outer_contour, resize, shape_for
+from .masks import MORPH_FRACTION, disk, downscale, fill_holes, outer_contour, resize, shape_for
 from .photo import Segmentation, _run_grabcut, _validate_image
 
 #: Long side (pixels) of the copy the clicks are segmented on.
@@ -136,10 +136,10 @@ class ClickSession:
 
     def _first(self, point: tuple[int, int]) -> np.ndarray:
         """The mask after one positive click: of auto's hypotheses that hold the click
-        (all their pieces: a subject may come in several) and a GrabCut seeded at the
-        click, the one the others agree with most."""
+        (the piece under it: a person clicks each thing that should wear the jeans) and
+        a GrabCut seeded at the click, the one the others agree with most."""
         x, y = point
-        candidates = {name: mask for name, mask in self._hypotheses.items() if mask[y, x]}
+        candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
         seeded = self._cut(np.full(self.rgb.shape[:2], cv2.GC_PR_BGD, np.uint8), [point], [])
         candidates["click"] = seeded
         if len(candidates) == 1:
@@ -248,17 +248,18 @@ def _seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, r
 
 
 def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
-    """``mask`` made to obey the clicks: the pieces holding a positive click (and the
-    pieces at least a tenth of the largest of those: a subject may come in several),
+    """``mask`` made to obey the clicks: the pieces that hold a positive click (pieces
+    that a closing of 1% of the object's size joins count as one, as in
+    :func:`~jeanscv.silhouette.objects.split_objects`: a leg cut off by a thin gap stays),
     holes filled unless a negative click is in one; every positive click in, every
     negative click out."""
-    count, components = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    eight = mask.astype(np.uint8)
+    radius = int(MORPH_FRACTION * np.sqrt(max(int(eight.sum()), 1)))
+    grouped = cv2.morphologyEx(eight, cv2.MORPH_CLOSE, disk(radius)) if radius > 0 else eight
+    grouped |= eight
+    _, components = cv2.connectedComponents(grouped, connectivity=8)
     keep = {int(components[y, x]) for x, y in pos} - {0}
-    if keep:
-        areas = np.bincount(components.ravel(), minlength=count)
-        floor = 0.1 * max(areas[k] for k in keep)
-        keep |= {k for k in range(1, count) if areas[k] >= floor}
-    kept = np.isin(components, list(keep)) if keep else np.zeros_like(mask, dtype=bool)
+    kept = (np.isin(components, list(keep)) & mask) if keep else np.zeros_like(mask, dtype=bool)
     filled = fill_holes(kept)
     holes = filled & ~kept
     if holes.any() and neg:
@@ -294,9 +295,36 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
     return np.count_nonzero(a & b) / union if union else 1.0
 
 
+def _interior_distance(region: np.ndarray) -> np.ndarray:
+    """Distance of each pixel of ``region`` to its boundary (the image border counts)."""
+    return cv2.distanceTransform(np.pad(region.astype(np.uint8), 1), cv2.DIST_L2, 5)[1:-1, 1:-1]
+
+
+def simulated_click(reference: np.ndarray, predicted: np.ndarray | None) -> tuple[bool, Point]:
+    """The next click of the standard simulated user (Xu et al. 2016; RITM, Sofiiuk et
+    al. 2022), for measuring: ``(positive?, (x, y))``.
+
+    The first click (``predicted`` None) at the interior point of ``reference`` farthest
+    from its boundary (the image border counts as boundary); each next click in the
+    largest error region (the one whose interior point lies farthest from its boundary),
+    at that point: positive where the subject was missed, negative where background was
+    taken. ``reference`` and ``predicted`` are ``(H, W)`` bool.
+    """
+    if predicted is None:
+        distance = _interior_distance(reference)
+        y, x = np.unravel_index(np.argmax(distance), distance.shape)
+        return True, (x + 0.5, y + 0.5)
+    missed = _interior_distance(reference & ~predicted)
+    taken = _interior_distance(~reference & predicted)
+    positive = missed.max() >= taken.max()
+    distance = missed if positive else taken
+    y, x = np.unravel_index(np.argmax(distance), distance.shape)
+    return bool(positive), (x + 0.5, y + 0.5)
+
+
 def segment_with_clicks(image: np.ndarray, positive: Sequence[Point], negative: Sequence[Point] = ()) -> Segmentation:
     """One object's mask from its clicks (a :class:`ClickSession` used once)."""
     return ClickSession(image).segment(positive, negative)
 
 
-__all__ = ["ClickSession", "WORKING_SIZE", "segment_with_clicks"]
+__all__ = ["ClickSession", "WORKING_SIZE", "segment_with_clicks", "simulated_click"]
