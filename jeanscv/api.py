@@ -12,11 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .device import resolve_backend, resolve_device
 from .errors import JeansError
 from .framing import Framing, frame_mask, identity_framing
-from .garments import JEANS, Garment, get_garment
+from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE, mask_box
 from .io.svg import SVG_EXTENSIONS
+from .plugins import get_garment
 
 KINDS = ("auto", "silhouette", "photo")
 #: ``one``: the main subject; ``all``: every separate object, each with its own garment.
@@ -337,32 +339,6 @@ def fit(
     return result
 
 
-def resolve_device(device: str) -> str:
-    """``auto`` -> ``cuda`` when available else ``cpu``; asking for missing cuda is an error.
-
-    ``cpu`` needs no torch, and ``auto`` imports torch (about a second) only where an
-    NVIDIA driver is installed.
-    """
-    if device == "cpu":
-        return device
-    if device == "auto" and not _nvidia_driver():
-        return "cpu"
-    import torch
-
-    if device == "auto":
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    if device.startswith("cuda") and not torch.cuda.is_available():
-        raise JeansError("--device cuda was requested but CUDA is not available")
-    if device not in ("cpu",) and not device.startswith("cuda"):
-        raise JeansError(f"unknown device {device!r} (use auto, cpu or cuda)")
-    return device
-
-
-def _nvidia_driver() -> bool:
-    """Whether an NVIDIA kernel driver is loaded (CUDA cannot be available without one)."""
-    return Path("/proc/driver/nvidia/version").exists() or Path("/dev/nvidiactl").exists() or os.name == "nt"
-
-
 def composite(
     image: np.ndarray,
     fit_result,
@@ -437,7 +413,7 @@ class FittedObject:
         """The object's entry in the report's ``objects`` list; ``tilt_degrees`` and
         ``posture`` are measured on its ``vertices_image`` as reported."""
         from .checks import rule_report
-        from .fitter import posture_name, tilt_degrees
+        from .posture import posture_name, tilt_degrees
 
         framing = self.silhouette.framing
         rules = rule_report(self.fit.vertices, self.silhouette.canvas, self.fit.garment)
@@ -628,7 +604,7 @@ def apply_jeans(
     from .presets import get_preset
 
     get_preset(preset).with_posture(posture)  # a bad preset or posture fails before the decoding
-    if _fast.backend(backend, resolve_device(device)) == "fast":
+    if resolve_backend(backend, resolve_device(device)) == "fast":
         _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
     silhouettes, resolved_kind, pixels, loaded = prepare_input(
         source, kind, silhouette_method, threshold, rect, mask, max_pixels, raw_half_size, objects, points

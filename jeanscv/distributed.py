@@ -150,7 +150,7 @@ def run_on_dask(
     """
     distributed = _dask_distributed()
     from .api import apply_jeans
-    from .garments import get_garment
+    from .plugins import get_garment
 
     try:
         inspect.signature(apply_jeans).bind("input", **apply_options)
