@@ -20,8 +20,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from presets_report import load_shapes  # noqa: E402
 
 from jeanscv.checks import rule_report  # noqa: E402
-from jeanscv.fitter import fit, posture  # noqa: E402
+from jeanscv.fitter import fit  # noqa: E402
 from jeanscv.garments import JEANS  # noqa: E402
+from jeanscv.posture import posture  # noqa: E402
 from jeanscv.synthetic import random_creature  # noqa: E402
 
 

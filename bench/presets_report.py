@@ -18,7 +18,8 @@ from PIL import Image, ImageDraw
 
 from jeanscv.checks import rule_report
 from jeanscv.compositing import render_silhouette_figure
-from jeanscv.fitter import fit, posture_name, tilt_degrees
+from jeanscv.fitter import fit
+from jeanscv.posture import posture_name, tilt_degrees
 from jeanscv.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"

@@ -96,7 +96,7 @@ def main() -> None:
         sys.exit(f"no photos in {REAL_PHOTOS}: nothing to measure")
 
     import jeanscv
-    from jeanscv.fitter import tilt_degrees
+    from jeanscv.posture import tilt_degrees
 
     paths = photo_paths()
     if args.only:

@@ -10,7 +10,8 @@ import argparse
 from collections import Counter
 
 from jeanscv.checks import rule_report
-from jeanscv.fitter import fit, posture_name, tilt_degrees
+from jeanscv.fitter import fit
+from jeanscv.posture import posture_name, tilt_degrees
 from jeanscv.synthetic import random_creature
 
 

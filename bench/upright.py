@@ -4,7 +4,7 @@
     PYTHONPATH=. python bench/upright.py [--only photos,synthetic,silhouettes,shapes,paper] [--overlays DIR]
 
 Counts, per posture, the fits that are upright (tilt <= 30 degrees, see
-``jeanscv.fitter.tilt_degrees``) and pass all six rule checks on:
+``jeanscv.posture.tilt_degrees``) and pass all six rule checks on:
 
 - the real photos of ``../shared/real_photos`` through the real pipeline (decode,
   segmentation, framing, fit; each photo segmented once, fitted both ways);
@@ -41,7 +41,8 @@ from upright_shapes import upright_shapes  # noqa: E402
 
 from jeanscv.api import draw_figure  # noqa: E402
 from jeanscv.checks import rule_report  # noqa: E402
-from jeanscv.fitter import fit, posture_name, tilt_degrees  # noqa: E402
+from jeanscv.fitter import fit  # noqa: E402
+from jeanscv.posture import posture_name, tilt_degrees  # noqa: E402
 from jeanscv.render import polygon_coverage  # noqa: E402
 from jeanscv.synthetic import random_creature  # noqa: E402
 

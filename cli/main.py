@@ -315,9 +315,9 @@ def _main(
 ) -> int:
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
-    from jeanscv.api import resolve_device
+    from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
-    from jeanscv.garments import get_garment
+    from jeanscv.plugins import get_garment
     from jeanscv.presets import get_preset
 
     from .discover import collect
@@ -330,7 +330,6 @@ def _main(
         except JeansError as exc:
             raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
 
-    from jeanscv._fast import backend as resolve_backend
     from jeanscv._fast import kernels_cached
 
     try:
@@ -539,7 +538,7 @@ def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from jeanscv.__main__ import worker_init
+    from jeanscv._command import worker_init
 
     from .worker import Outcome, process_in_worker
 

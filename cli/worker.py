@@ -167,7 +167,7 @@ def picture(result, options: Options):
     image = add_captions(result.image, options.top, options.bottom)
     if options.side_by_side:
         if result.kind == "silhouette":
-            from jeanscv.api import figure
+            from jeanscv.figures import figure
 
             original = figure(result.silhouette)
         else:
@@ -183,9 +183,9 @@ def report_json(result, job: Job) -> str:
 
 
 def _run(job: Job, options: Options, outcome: Outcome) -> None:
-    from jeanscv import api
-    from jeanscv.api import load_mask, silhouette_contours
+    from jeanscv import pipeline
     from jeanscv.io.write import atomic_write_bytes
+    from jeanscv.silhouettes import load_mask, silhouette_contours
 
     from .extras import optimisation_gif, svg_document
 
@@ -201,7 +201,7 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
             clicks = read_clicks(saved)
         except JeansError as exc:
             raise JeansError(f"clicks file {saved.name}: {exc}") from None
-    result = api.apply_jeans(
+    result = pipeline.apply_jeans(
         job.path,
         garment=options.garment,
         preset=options.preset,

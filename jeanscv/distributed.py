@@ -1,4 +1,4 @@
-"""Run :func:`jeanscv.api.apply_jeans` over many files on a Dask cluster.
+"""Run :func:`jeanscv.pipeline.apply_jeans` over many files on a Dask cluster.
 
 Needs the optional dependency ``dask[distributed]`` (``pip install jeanscv[dask]``),
 imported only when :func:`run_on_dask` is called. Each input is one task; the task
@@ -83,8 +83,8 @@ def process_one(source: str, picture: str, report: str, options: dict[str, Any],
     "input", "output", "report", "error", "seconds", ...}``. Both files are encoded before
     either is written, so a failure leaves no output behind.
     """
-    from .api import apply_jeans
     from .io.write import atomic_write_bytes, encode_image, format_for_path, write_text
+    from .pipeline import apply_jeans
 
     began = time.perf_counter()
     record: dict[str, Any] = {"status": "ok", "input": source, "output": picture, "report": report, "error": ""}
@@ -140,7 +140,7 @@ def run_on_dask(
             cluster for this call and closes it afterwards.
         report: optional path of the JSONL report (one record per line, input order).
         overwrite: False skips inputs whose two outputs exist (a resumed run).
-        apply_options: passed to :func:`jeanscv.api.apply_jeans` (``garment``,
+        apply_options: passed to :func:`jeanscv.pipeline.apply_jeans` (``garment``,
             ``preset``, ``iterations``, ``seed``, ...). The garment is resolved here, so a
             ``.toml`` garment or a plugin garment need only exist on the driver;
             silhouette plugins must be installed on the workers.
@@ -149,8 +149,8 @@ def run_on_dask(
         The records of :func:`process_one` (with ``worker``, the address it ran on).
     """
     distributed = _dask_distributed()
-    from .api import apply_jeans
-    from .garments import get_garment
+    from .pipeline import apply_jeans
+    from .plugins import get_garment
 
     try:
         inspect.signature(apply_jeans).bind("input", **apply_options)

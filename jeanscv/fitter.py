@@ -9,10 +9,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .adam import BatchAdam
+from .device import resolve_backend
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
 from .objectives import make_descent, make_objective
+from .posture import posture, tilt_degrees
 from .presets import Preset, get_preset
 from .terms import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES
 
@@ -33,36 +36,6 @@ DEFAULT_PLACEMENTS = (
     (0.8, 90.0),
     (0.8, -90.0),
 )
-
-
-def tilt_degrees(vertices: np.ndarray, garment: Garment) -> float:
-    """The angle between straight down the image and the line from the waistband's midpoint
-    to the midpoint of the outer hems (:attr:`Garment.hems`): 0 upright, 90 lying on its
-    side, 180 upside down. A framing (scale and shift) keeps it, so canvas and image
-    vertices give the same tilt."""
-    v = np.asarray(vertices, dtype=np.float64)
-    down = v[list(garment.hems)].mean(axis=0) - v[list(garment.waist)].mean(axis=0)
-    return float(np.degrees(np.arctan2(abs(down[0]), down[1])))
-
-
-#: Posture names by tilt: upright up to 30 degrees (the issue's bar), lying below 120.
-POSTURE_NAMES = ((30.0, "upright"), (120.0, "lying"), (180.0, "upside down"))
-
-
-def posture_name(tilt: float) -> str:
-    """``upright``, ``lying`` or ``upside down`` for a tilt in degrees (:func:`tilt_degrees`)."""
-    return next(name for limit, name in POSTURE_NAMES if tilt <= limit)
-
-
-def posture(vertices: np.ndarray, garment: Garment) -> int:
-    """The rules selection's coarse posture: 0 upright, 1 lying, 2 upside down, in 60-degree
-    bands of the direction from the waistband to the mean of the other vertices (kept as it
-    was, so that ``posture="any"`` reproduces the earlier choices)."""
-    v = np.asarray(vertices, dtype=np.float64)
-    waist = v[list(garment.waist)].mean(axis=0)
-    down = np.delete(v, list(garment.waist), axis=0).mean(axis=0) - waist
-    tilt = float(np.degrees(np.arctan2(abs(down[0]), down[1])))
-    return int(min(tilt // 60.0001, 2))
 
 
 @dataclass
@@ -192,49 +165,6 @@ def as_silhouette_array(silhouette) -> np.ndarray:
     return s
 
 
-def adam_update(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_size, bias2, eps) -> None:
-    """One Adam update of ``params`` and its moments in place, in torch.optim.Adam's order
-    of operations; ``step_size = lr / (1 - beta1^t)``, ``bias2 = 1 - beta2^t``. Plain array
-    code: the fast backend's step loop compiles this same source with numba."""
-    exp_avg *= beta1
-    exp_avg += (1 - beta1) * grad
-    exp_avg_sq *= beta2
-    exp_avg_sq += (1 - beta2) * grad * grad
-    denom = np.sqrt(exp_avg_sq / bias2) + eps
-    params -= step_size * (exp_avg / denom)
-
-
-class BatchAdam:
-    """Adam (Kingma & Ba; torch.optim.Adam's defaults and update) over a batch of starts,
-    in numpy: the fit's parameters are a few hundred numbers, and torch.optim would
-    import torch._dynamo (1.6 s per process). The batch shrinks with its moments when
-    starts are pruned."""
-
-    def __init__(self, params: np.ndarray, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
-        self.params, self.lr, self.betas, self.eps = np.array(params, dtype=np.float64), lr, betas, eps
-        self.exp_avg = np.zeros_like(self.params)
-        self.exp_avg_sq = np.zeros_like(self.params)
-        self.steps = 0
-
-    def corrections(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(step_size, bias2)`` of the next ``steps`` steps (:func:`adam_update`)."""
-        beta1, beta2 = self.betas
-        counts = range(self.steps + 1, self.steps + steps + 1)
-        return np.array([self.lr / (1 - beta1**t) for t in counts]), np.array([1 - beta2**t for t in counts])
-
-    def step(self, grad: np.ndarray) -> None:
-        """One Adam update of ``params`` in place."""
-        step_size, bias2 = self.corrections(1)
-        self.steps += 1
-        adam_update(self.params, grad, self.exp_avg, self.exp_avg_sq, *self.betas, step_size[0], bias2[0], self.eps)
-
-    def keep(self, index: np.ndarray) -> None:
-        """Shrink the batch to the starts in ``index``, moments included."""
-        self.params = self.params[index]
-        self.exp_avg = self.exp_avg[index]
-        self.exp_avg_sq = self.exp_avg_sq[index]
-
-
 def _select(
     candidates: np.ndarray, totals: np.ndarray, silhouette: np.ndarray, garment: Garment, preset: Preset
 ) -> int:
@@ -343,10 +273,8 @@ def fit(
     upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the
     preset's upright plan, if it has one) or ``any`` (:meth:`Preset.with_posture`).
     ``threads``: torch threads during a torch fit (None leaves torch's setting).
-    ``backend``: ``fast`` (numba, CPU) or ``torch``; None: :func:`jeanscv._fast.backend`.
+    ``backend``: ``fast`` (numba, CPU) or ``torch``; None: :func:`jeanscv.device.resolve_backend`.
     """
-    from ._fast import backend as resolve_backend
-
     preset = (get_preset(preset) if isinstance(preset, str) else preset).with_posture(posture)
     backend = resolve_backend(backend, device)
     with _torch_threads(threads, backend):

@@ -15,13 +15,14 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .device import fast_available
 from .garments import Garment
 from .terms import TERM_NAMES, check_inter_pairs
 
 #: ``(pixels (B, N, 2), target (C, C), stroke half width, need_grad)`` ->
 #: ``(totals (B,), d totals / d pixels (B, N, 2) or None, {term: (B,)})``.
 ObjectiveFunction = Callable[[np.ndarray, np.ndarray, float, bool], tuple[np.ndarray, np.ndarray | None, dict]]
-#: ``(optimizer (fitter.BatchAdam), target (C, C), steps, stroke half width)`` -> ``(totals
+#: ``(optimizer (adam.BatchAdam), target (C, C), steps, stroke half width)`` -> ``(totals
 #: (k, B), normalised params after each step (k, B, N, 2))``; ``k < steps``: at step ``k``
 #: every start diverged.
 DescentFunction = Callable[[object, np.ndarray, int, float], tuple[np.ndarray, np.ndarray]]
@@ -120,7 +121,7 @@ def polygon_coverage(vertices: np.ndarray, height: int, width: int) -> np.ndarra
     rasterizer; the same exact area either way."""
     from . import _fast
 
-    if _fast.available():
+    if fast_available():
         return _fast.polygon_coverage(vertices, height, width)
     import torch
 
@@ -134,7 +135,7 @@ def stroke_coverage(start: np.ndarray, end: np.ndarray, height: int, width: int)
     same backend as :func:`polygon_coverage`."""
     from . import _fast
 
-    if _fast.available():
+    if fast_available():
         return _fast.stroke_coverage(start, end, height, width)
     import torch
 

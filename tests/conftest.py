@@ -1,7 +1,7 @@
 """Shared test set-up: the CLI package importable from a source checkout, and CLI fixtures.
 
 After ``pip install -e .`` the CLI is the package ``jeanscv_cli``; in a plain
-checkout ``jeanscv/__main__.py`` loads the ``cli/`` folder under that name.
+checkout ``jeanscv/_command.py`` loads the ``cli/`` folder under that name.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ PAPER_SHAPES = ("person", "vitruvian", "dog", "horse", "tripod", "balldragon", "
 if importlib.util.find_spec("jeanscv") is None:
     sys.path.insert(0, str(ROOT))
 if importlib.util.find_spec("jeanscv_cli") is None:
-    import jeanscv.__main__  # noqa: F401  (registers jeanscv_cli from ./cli)
+    import jeanscv._command  # noqa: F401  (registers jeanscv_cli from ./cli)
 
 # A person-like polygon in a 256x256 viewBox: the SVG used when shared/ is absent.
 _PERSON_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="256" height="256" viewBox="0 0 256 256">

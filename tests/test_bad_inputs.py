@@ -210,12 +210,12 @@ def test_unwritable_output_folder(tmp_path, run_cli, monkeypatch):
 
 
 def test_unexpected_exception_is_one_line(tmp_path, run_cli, monkeypatch):
-    from jeanscv import api
+    from jeanscv import pipeline
 
     def boom(*args, **kwargs):
         raise RuntimeError("something\nbroke")
 
-    monkeypatch.setattr(api, "apply_jeans", boom)
+    monkeypatch.setattr(pipeline, "apply_jeans", boom)
     src = write_silhouette_png(tmp_path / "a.png")
     result = run_cli(src, *FAST, "-q")
     assert result.exit_code == 1

@@ -18,14 +18,17 @@ import torch
 from conftest import ROOT, paper_silhouette
 
 from jeanscv import _fast
-from jeanscv.fitter import _area_downsampled, _blurred, fit, posture
+from jeanscv.adam import BatchAdam
+from jeanscv.device import fast_available
+from jeanscv.fitter import _area_downsampled, _blurred, fit
 from jeanscv.garments import JEANS
 from jeanscv.loss import TERM_NAMES, jalgorithm_terms, weighted_total
+from jeanscv.posture import posture
 from jeanscv.presets import get_preset
 from jeanscv.render import polygon_coverage, polygon_edges, stroke_coverage
 from jeanscv.synthetic import silhouette_zoo
 
-pytestmark = pytest.mark.skipif(not _fast.available(), reason="numba is not installed")
+pytestmark = pytest.mark.skipif(not fast_available(), reason="numba is not installed")
 
 UPRIGHT_WEIGHT = 40.0  # the default preset's weight on upright once issue 12 lands
 
@@ -184,7 +187,6 @@ def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, 
 def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_starts():
     import functools
 
-    from jeanscv.fitter import BatchAdam
     from jeanscv.objectives import descend_by_steps, make_objective
 
     silhouette = silhouette_zoo(["dog"])["dog"].astype(np.float64)
@@ -218,8 +220,7 @@ def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
         import numpy as np
         from jeanscv import _fast
         from jeanscv._fast.objective import descend, objective
-        from jeanscv.fitter import BatchAdam
-        from jeanscv.garments import JEANS
+            from jeanscv.garments import JEANS
         kernel = _fast.Objective(JEANS, "all", {"coverage": 1.0})
         kernel(JEANS.template[None], np.ones((256, 256)))
         kernel.descend(BatchAdam(JEANS.template[None] / 256, 0.01), np.ones((256, 256)), 2, 2.5)

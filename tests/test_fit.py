@@ -11,8 +11,9 @@ from reference import loss_terms_ref
 
 from jeanscv.checks import rule_report, self_intersects
 from jeanscv.errors import JeansError
-from jeanscv.fitter import fit, initial_placements, posture
+from jeanscv.fitter import fit, initial_placements
 from jeanscv.garments import JEANS
+from jeanscv.posture import posture
 from jeanscv.render import polygon_coverage
 from jeanscv.synthetic import ZOO, silhouette_zoo
 
@@ -141,7 +142,7 @@ def test_rule_checks_on_hand_made_cases():
 
 
 def test_batch_adam_matches_torch_adam():
-    from jeanscv.fitter import BatchAdam
+    from jeanscv.adam import BatchAdam
 
     start = torch.tensor([[1.0, -2.0], [0.5, 3.0]], dtype=torch.float64)
     ours = BatchAdam(start.numpy().copy(), lr=1e-2)
@@ -156,7 +157,7 @@ def test_batch_adam_matches_torch_adam():
 
 
 def test_posture_classes():
-    from jeanscv.fitter import tilt_degrees
+    from jeanscv.posture import tilt_degrees
 
     centre = JEANS.template[list(JEANS.waist)].mean(axis=0)
 

@@ -21,7 +21,8 @@ import pytest
 
 from jeanscv import plugins
 from jeanscv.errors import JeansError
-from jeanscv.garments import GARMENTS, get_garment
+from jeanscv.garments import GARMENTS
+from jeanscv.plugins import get_garment
 
 try:
     import tomllib

@@ -13,8 +13,9 @@ from upright_shapes import lying_cow, lying_dog
 
 from jeanscv.checks import rule_report
 from jeanscv.errors import JeansError
-from jeanscv.fitter import _upright_survivors, fit, initial_placements, posture_name, tilt_degrees
+from jeanscv.fitter import _upright_survivors, fit, initial_placements
 from jeanscv.garments import JEANS
+from jeanscv.posture import posture_name, tilt_degrees
 from jeanscv.presets import get_preset
 from jeanscv.synthetic import random_creature, silhouette_zoo
 
