@@ -1,12 +1,24 @@
 """Interactive segmentation: positive and negative clicks that fix the subject's mask.
 
 Public API: :class:`ClickSession` (set a photo once, then each call with the current
-clicks of one object returns its mask quickly) and :func:`segment_with_clicks` (the same,
-stateless).
+clicks of one object returns its mask quickly), :func:`segment_with_clicks` (the same,
+stateless) and :func:`simulated_click` (the standard simulated user, for benches).
 
 Arrays: images ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8``; masks ``(H, W) bool``;
 clicks ``(x, y)`` image pixels, package convention (pixel ``(c, r)`` covers
 ``[c, c+1) x [r, r+1)``).
+
+How: the session works on a copy with long side ``WORKING_SIZE``, with SLIC superpixels
+joined by their Lab distances. The first positive click chooses, among auto's hypotheses
+that hold it (:func:`jeanscv.silhouette.photo.hypotheses`), a GrabCut seeded at the
+click, and what is geodesically nearer the click than the image border (boundary
+connectivity, Zhu et al. 2014), the one the others agree with most and that the click
+lies deepest in; the piece under the click is kept. Every further click is a geodesic
+correction on the superpixels (Bai and Sapiro 2007; Gulshan et al. 2010's geodesic
+seeds): on the side of the mask where the click landed, what the click reaches more
+cheaply than the other side's stand-ins changes sides. The clicks are hard: the mask
+holds every positive click and none of the negative ones; the pieces without a
+positive click are dropped, holes filled unless a negative click is in one.
 """
 
 from __future__ import annotations
@@ -28,16 +40,21 @@ SCENE_SIZE = 640
 _ITERATIONS = 3
 #: Radius of a click's hard seed, as a fraction of the working copy's short side.
 _SEED_FRACTION = 0.012
-#: A corrective click flips a region at most this many times its distance to the boundary.
-_REACH = 2.0
+#: Superpixel size, as a fraction of the working copy's long side.
+_REGION_FRACTION = 0.02
+#: Lab steps between neighbouring superpixels below this cost nothing (noise, texture).
+_STEP_FLOOR = 2.0
+#: Background border superpixels nearer the click than this many times its depth do not
+#: stand for the background (the missed part may leave the frame there).
+_ANCHOR_REACH = 1.5
+#: The wrong side farther than this many times the click's depth keeps its side unless
+#: the click reaches it for less than ``_CORE_PRICE`` (Lab units summed along the way).
+_CORE_REACH = 2.0
+_CORE_PRICE = 20.0
+#: Radius of the "probably the object" disc of the click-seeded GrabCut (short side).
+_PROBABLE_RADIUS = 0.3
 #: Weight of the click's relative depth against agreement when the first click chooses.
 _DEPTH_WEIGHT = 0.5
-#: A corrective click re-decides a window this many times its radius (half-width).
-_WINDOW = 3.0
-#: Colour steps (Lab units between neighbours) the flood fill tries, in order.
-_FLOOD_STEPS = (1, 2, 3, 4, 6, 8, 11, 16)
-#: A flood that grows this many times at once has leaked through an edge.
-_LEAK = 4.0
 
 Point = tuple[float, float]
 
@@ -73,7 +90,7 @@ class ClickSession:
             self._hypotheses = {}
         self._cache: dict[tuple, np.ndarray] = {}
         self._seed_radius = max(1, round(_SEED_FRACTION * min(self.size)))
-        self._smooth_lab = cv2.cvtColor(cv2.GaussianBlur(self.rgb, (0, 0), 1.0), cv2.COLOR_RGB2LAB)
+        self._graph = _ClickGraph(self.rgb)
 
     # ------------------------------------------------------------------ coordinates
     def _to_working(self, point: Point) -> tuple[int, int]:
@@ -140,8 +157,16 @@ class ClickSession:
         a GrabCut seeded at the click, the one the others agree with most."""
         x, y = point
         candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
-        seeded = self._cut(np.full(self.rgb.shape[:2], cv2.GC_PR_BGD, np.uint8), [point], [])
+        # GrabCut seeded at the click: probably the object within a disc around it,
+        # certainly background along the border (as the point seeds of GrabCut's users).
+        short = min(self.rgb.shape[:2])
+        labels = np.full(self.rgb.shape[:2], cv2.GC_PR_BGD, np.uint8)
+        cv2.circle(labels, (x, y), max(2, round(_PROBABLE_RADIUS * short)), int(cv2.GC_PR_FGD), -1)
+        ring = max(1, round(0.02 * short))
+        labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_BGD,) * 4
+        seeded = self._cut(labels, [point], [])
         candidates["click"] = seeded
+        candidates["geodesic"] = self._geodesic_first(point)
         if len(candidates) == 1:
             return seeded
         names = list(candidates)
@@ -155,69 +180,57 @@ class ClickSession:
         best = candidates[max(names, key=lambda n: (scores[n], n == "click"))]
         return _constrained(best, [point], [])
 
+    def _geodesic_first(self, point: tuple[int, int]) -> np.ndarray:
+        """What is geodesically nearer the click than the image border (the background
+        spreads along the border: Zhu et al. 2014), as superpixels."""
+        x, y = point
+        graph = self._graph
+        node = int(graph.labels[y, x])
+        everywhere = np.ones(graph.count, bool)
+        border = graph.on_border.copy()
+        border[node] = False
+        near_click = graph.distances(everywhere, [node])
+        near_border = graph.distances(everywhere, np.flatnonzero(border)) if border.any() else np.inf
+        return _constrained((near_click < near_border)[graph.labels], [point], [])
+
     def _step(self, previous: np.ndarray, clicks: tuple) -> np.ndarray:
         """The mask after one more click, from the mask before it.
 
-        The click says that the region around it is on the wrong side. Its radius ``r``
-        is the click's distance to the current mask's boundary; the region is
-        flood-filled from the click on the wrong side (:meth:`_flood`) and handed to the
-        other side as hard seeds. GrabCut decides again inside a window of ``_WINDOW r``
-        around the click, with colour models learned there; the window's rim and
-        everything outside it keep the current mask, so an edit stays where it was asked.
+        The click says that the region around it is on the wrong side. On the
+        superpixels of that side, the ones geodesically nearer the click than to what
+        stands for the other side change sides. What stands for the other side: the
+        clicks of the other sign; for a positive click, the background's border away
+        from the click (the background spreads along the border); and, at a price of
+        ``_CORE_PRICE``, the rest of the wrong side farther than ``_CORE_REACH`` times
+        the click's depth, so a click takes what it reaches without crossing an edge
+        (a whole sky) but not what lies beyond one.
         """
         sign, (x, y) = clicks[-1]
-        wrong = previous if sign == "-" else ~previous
+        graph = self._graph
+        share = graph.mean_of(previous)
+        wrong = share > 0.5 if sign == "-" else share <= 0.5
+        node = int(graph.labels[y, x])
+        wrong[node] = True
+        depth = _depth(previous if sign == "-" else ~previous, x, y)
+        away = np.hypot(*(graph.centre_px - np.array([x, y])).T)
+        anchors = np.zeros(graph.count, bool)
+        anchors[[graph.labels[py, px] for s, (px, py) in clicks if s != sign]] = True
+        if sign == "+":
+            anchors |= graph.on_border & (away > _ANCHOR_REACH * depth)
+        anchors &= wrong
+        anchors[node] = False
+        core = wrong & (away > _CORE_REACH * depth)
+        core[node] = False
+        near_click = graph.distances(wrong, [node])
+        near_other = graph.distances(wrong, np.flatnonzero(anchors)) if anchors.any() else np.inf
+        if core.any():
+            near_other = np.minimum(near_other, graph.distances(wrong, np.flatnonzero(core)) + _CORE_PRICE)
+        flip = wrong & (near_click < near_other)
+        mask = previous.copy()
+        mask[flip[graph.labels]] = sign == "+"
         pos = [p for s, p in clicks if s == "+"]
         neg = [p for s, p in clicks if s == "-"]
-        radius = _depth(wrong, x, y)
-        region = np.zeros(wrong.shape, np.uint8)
-        cv2.circle(region, (x, y), int(round(radius)), 1, -1)
-        region = region.astype(bool) & wrong
-        height, width = previous.shape
-        reach = int(np.ceil(_WINDOW * radius)) + 2
-        x0, x1 = max(0, x - reach), min(width, x + reach + 1)
-        y0, y1 = max(0, y - reach), min(height, y + reach + 1)
-        crop = previous[y0:y1, x0:x1]
-        labels = np.where(crop, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-        rim = np.zeros(labels.shape, bool)
-        rim[0, :] |= y0 > 0
-        rim[-1, :] |= y1 < height
-        rim[:, 0] |= x0 > 0
-        rim[:, -1] |= x1 < width
-        labels[rim] = np.where(crop[rim], cv2.GC_FGD, cv2.GC_BGD)
-        labels[region[y0:y1, x0:x1]] = cv2.GC_PR_FGD if sign == "+" else cv2.GC_PR_BGD
-        inside = [(s, (px - x0, py - y0)) for s, (px, py) in clicks if x0 <= px < x1 and y0 <= py < y1]
-        local_pos = [p for s, p in inside if s == "+"]
-        local_neg = [p for s, p in inside if s == "-"]
-        cut = _seeded_grabcut(self.rgb[y0:y1, x0:x1], labels, local_pos, local_neg, self._seed_radius)
-        mask = previous.copy()
-        mask[y0:y1, x0:x1] = cut
         return _constrained(mask, pos, neg)
-
-    def _flood(self, wrong: np.ndarray, point: tuple[int, int], radius: float, others: list) -> np.ndarray:
-        """The region around ``point`` on the ``wrong`` side that the click flips: a
-        flood fill in Lab (neighbour to neighbour) with the largest colour step whose
-        region stays within ``_REACH * radius`` of the click, away from clicks of the
-        other sign, and does not jump in area (a jump means it got through an edge)."""
-        x, y = point
-        height, width = wrong.shape
-        allowed = np.zeros((height, width), np.uint8)
-        cv2.circle(allowed, (x, y), int(round(_REACH * radius)), 1, -1)
-        allowed &= wrong.astype(np.uint8)
-        for ox, oy in others:
-            cv2.circle(allowed, (ox, oy), self._seed_radius, 0, -1)
-        best = np.zeros((height, width), bool)
-        cv2.circle(best.view(np.uint8), (x, y), self._seed_radius, 1, -1)
-        best &= wrong
-        for step in _FLOOD_STEPS:
-            fill_mask = np.pad(1 - allowed, 1)
-            flags = 4 | cv2.FLOODFILL_MASK_ONLY | (2 << 8)
-            cv2.floodFill(self._smooth_lab, fill_mask, (x, y), 0, (step,) * 3, (step,) * 3, flags)
-            region = fill_mask[1:-1, 1:-1] == 2
-            if region.sum() > _LEAK * max(best.sum(), np.pi * (radius / 2) ** 2):
-                break
-            best |= region
-        return best
 
     def _cut(self, labels: np.ndarray, pos: list, neg: list) -> np.ndarray:
         """GrabCut of the whole working copy from ``labels`` with the clicks as hard seeds,
@@ -279,15 +292,43 @@ def _depth(region: np.ndarray, x: int, y: int) -> float:
     return max(2.0, float(distance[y + 1, x + 1]))
 
 
+class _ClickGraph:
+    """SLIC superpixels of the working copy and their adjacency, weighted by the Lab
+    distance of neighbours (less a noise floor), for geodesic distances."""
+
+    def __init__(self, rgb: np.ndarray):
+        from scipy.sparse import coo_matrix
+
+        from .saliency import SuperpixelGraph
+
+        lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
+        region = max(4, round(_REGION_FRACTION * max(rgb.shape[:2])))
+        graph = SuperpixelGraph.of(lab, region)
+        self.labels, self.count, self.area = graph.labels, graph.count, graph.area
+        self.region = region
+        self.centre_px = graph.centre * float(max(rgb.shape[:2]))
+        self.on_border = graph.border.any(axis=1)
+        i, j = graph.edges[:, 0], graph.edges[:, 1]
+        weight = np.maximum(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) - _STEP_FLOOR, 0.0) + 1e-3
+        self._i, self._j, self._w = i, j, weight
+        self._coo = coo_matrix
+
+    def mean_of(self, mask: np.ndarray) -> np.ndarray:
+        return np.bincount(self.labels.ravel(), mask.ravel().astype(np.float64), self.count) / self.area
+
+    def distances(self, allowed: np.ndarray, sources) -> np.ndarray:
+        """(n,) geodesic distance to the nearest of ``sources`` through ``allowed`` nodes."""
+        from scipy.sparse.csgraph import dijkstra
+
+        keep = allowed[self._i] & allowed[self._j]
+        matrix = self._coo((self._w[keep], (self._i[keep], self._j[keep])), shape=(self.count, self.count)).tocsr()
+        return dijkstra(matrix, directed=False, indices=np.asarray(sources, int), min_only=True)
+
+
 def _relative_depth(mask: np.ndarray, x: int, y: int) -> float:
     """The click's distance to the mask's boundary over the mask's deepest distance."""
     distance = cv2.distanceTransform(np.pad(mask, 1).astype(np.uint8), cv2.DIST_L2, 5)
     return float(distance[y + 1, x + 1]) / max(float(distance.max()), 1.0)
-
-
-def _component_at(mask: np.ndarray, x: int, y: int) -> np.ndarray:
-    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
-    return labels == labels[y, x]
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> float:
