@@ -53,6 +53,10 @@ _CORE_REACH = 2.0
 _CORE_PRICE = 20.0
 #: Radius of the "probably the object" disc of the click-seeded GrabCut (short side).
 _PROBABLE_RADIUS = 0.3
+#: The click-seeded GrabCut of the first click runs on a copy this long: GrabCut's set-up
+#: costs about 1 s at 480 px and 0.15 s at 160, and on the shared photos the first
+#: click's mean IoU is 0.636 at 480, 0.642 at 240, 0.648 at 160 (0.622 without it).
+_CUT_SIZE = 160
 #: Weight of the click's relative depth against agreement when the first click chooses.
 _DEPTH_WEIGHT = 0.5
 
@@ -157,18 +161,10 @@ class ClickSession:
         a GrabCut seeded at the click, the one the others agree with most."""
         x, y = point
         candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
-        # GrabCut seeded at the click: probably the object within a disc around it,
-        # certainly background along the border (as the point seeds of GrabCut's users).
-        short = min(self.rgb.shape[:2])
-        labels = np.full(self.rgb.shape[:2], cv2.GC_PR_BGD, np.uint8)
-        cv2.circle(labels, (x, y), max(2, round(_PROBABLE_RADIUS * short)), int(cv2.GC_PR_FGD), -1)
-        ring = max(1, round(0.02 * short))
-        labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_BGD,) * 4
-        seeded = self._cut(labels, [point], [])
-        candidates["click"] = seeded
+        candidates["click"] = self._click_grabcut(point)
         candidates["geodesic"] = self._geodesic_first(point)
         if len(candidates) == 1:
-            return seeded
+            return next(iter(candidates.values()))
         names = list(candidates)
         # Agreement with the others, and how deep inside the click lies (a person clicks
         # the middle of the thing): a mask the click only grazes is likely the wrong one.
@@ -179,6 +175,25 @@ class ClickSession:
         }
         best = candidates[max(names, key=lambda n: (scores[n], n == "click"))]
         return _constrained(best, [point], [])
+
+    def _click_grabcut(self, point: tuple[int, int]) -> np.ndarray:
+        """GrabCut seeded at the click, on a copy of ``_CUT_SIZE``: probably the object
+        within a disc around the click, certainly background along the border (the
+        point seeds of GrabCut's users)."""
+        x, y = point
+        small_size = shape_for(self.rgb.shape[:2], _CUT_SIZE)
+        small = resize(self.rgb, small_size, cv2.INTER_AREA)
+        sx, sy = small_size[0] / self.size[0], small_size[1] / self.size[1]
+        px, py = min(int(x * sx), small_size[0] - 1), min(int(y * sy), small_size[1] - 1)
+        short = min(small.shape[:2])
+        labels = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
+        cv2.circle(labels, (px, py), max(2, round(_PROBABLE_RADIUS * short)), int(cv2.GC_PR_FGD), -1)
+        ring = max(1, round(0.02 * short))
+        labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_BGD,) * 4
+        radius = max(1, round(_SEED_FRACTION * short))
+        cut = _seeded_grabcut(small, labels, [(px, py)], [], radius)
+        mask = resize(cut.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
+        return _constrained(mask, [point], [])
 
     def _geodesic_first(self, point: tuple[int, int]) -> np.ndarray:
         """What is geodesically nearer the click than the image border (the background
@@ -231,11 +246,6 @@ class ClickSession:
         pos = [p for s, p in clicks if s == "+"]
         neg = [p for s, p in clicks if s == "-"]
         return _constrained(mask, pos, neg)
-
-    def _cut(self, labels: np.ndarray, pos: list, neg: list) -> np.ndarray:
-        """GrabCut of the whole working copy from ``labels`` with the clicks as hard seeds,
-        constrained (:func:`_constrained`)."""
-        return _constrained(_seeded_grabcut(self.rgb, labels, pos, neg, self._seed_radius), pos, neg)
 
 
 def _seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, radius: int) -> np.ndarray:
