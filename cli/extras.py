@@ -16,6 +16,8 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from jeanscv.io.write import on_white
+
 GIF_MAX_SIDE = 320
 JEANS_BLUE = (0, 0, 255)
 _FRAME_MS = 80
@@ -84,15 +86,6 @@ def _resize_float(plane: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     if plane.shape[::-1] == tuple(size):
         return plane.astype(np.float32)
     return np.asarray(Image.fromarray(plane.astype(np.float32), "F").resize(size, Image.Resampling.BOX))
-
-
-def on_white(image: np.ndarray) -> np.ndarray:
-    """RGB(A) -> RGB, transparent parts over white (for JPEG and GIF frames)."""
-    if image.ndim == 3 and image.shape[2] == 4:
-        alpha = image[..., 3:].astype(np.float32) / 255.0
-        rgb = image[..., :3].astype(np.float32) * alpha + 255.0 * (1.0 - alpha)
-        return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
-    return image
 
 
 def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE) -> bytes:

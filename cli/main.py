@@ -1,7 +1,8 @@
 """The ``jeanscv`` command: put jeans on every silhouette and photo you name.
 
-Only click is imported at module level: ``jeanscv --help`` and ``--version`` must not
-load torch, kornia, OpenCV or rawpy. Everything else is imported inside the command.
+Only click and the lists of allowed values (:mod:`jeanscv.options`, :mod:`jeanscv.device`)
+are imported at module level: ``jeanscv --help`` and ``--version`` must not load numpy,
+torch, kornia, OpenCV or rawpy. Everything else is imported inside the command.
 """
 
 from __future__ import annotations
@@ -15,6 +16,11 @@ from pathlib import Path
 import click
 
 from jeanscv import __version__
+from jeanscv.device import BACKENDS, DEVICES
+from jeanscv.options import KINDS, OBJECTS, POSTURES, STYLES, JeansOptions
+
+#: The library's defaults, which the command's options show and use (``--device`` is ``auto`` here).
+DEFAULTS = JeansOptions()
 
 EPILOG = """\b
 Examples:
@@ -119,7 +125,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option(
     "--gif-frames",
     type=click.IntRange(2, 500),
-    default=50,
+    default=DEFAULTS.gif_frames,
     show_default=True,
     help="Most frames in the --gif animation.",
 )
@@ -128,32 +134,39 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write a JSON-lines report, one line per input, to this file.",
 )
-@click.option("--preset", default="default", show_default=True, help="Fitting preset (see --list-presets).")
+@click.option("--preset", default=DEFAULTS.preset, show_default=True, help="Fitting preset (see --list-presets).")
 @click.option(
     "--posture",
-    type=click.Choice(["upright", "any"]),
-    default="upright",
+    type=click.Choice(POSTURES),
+    default=DEFAULTS.posture,
     show_default=True,
     help="upright: the garment hangs down unless no upright fit passes the rule checks; "
     "any: every posture competes (the algorithm's wilder answers).",
 )
 @click.option(
-    "--garment", default="jeans", show_default=True, help="Garment: a name (see --list-garments) or a .toml file."
+    "--garment",
+    default=DEFAULTS.garment,
+    show_default=True,
+    help="Garment: a name (see --list-garments) or a .toml file.",
 )
-@click.option("--iterations", type=click.IntRange(0), default=100, show_default=True, help="Optimiser steps.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed (same seed, same result).")
+@click.option(
+    "--iterations", type=click.IntRange(0), default=DEFAULTS.iterations, show_default=True, help="Optimiser steps."
+)
+@click.option(
+    "--seed", type=int, default=DEFAULTS.seed, show_default=True, help="Random seed (same seed, same result)."
+)
 @click.option("--starts", type=click.IntRange(1), help="Initial placements tried (default: the preset's).")
 @click.option(
     "--kind",
-    type=click.Choice(["auto", "silhouette", "photo"]),
-    default="auto",
+    type=click.Choice(KINDS),
+    default=DEFAULTS.kind,
     show_default=True,
     help="Treat inputs as silhouette drawings or photos.",
 )
 @click.option(
     "--silhouette",
     "silhouette_method",
-    default="auto",
+    default=DEFAULTS.silhouette_method,
     show_default=True,
     callback=_check_silhouette,
     help="How to cut the object out of a photo: auto, alpha, threshold, grabcut, or a plugin's name.",
@@ -163,8 +176,8 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")
 @click.option(
     "--objects",
-    type=click.Choice(["one", "all"]),
-    default="one",
+    type=click.Choice(OBJECTS),
+    default=DEFAULTS.objects,
     show_default=True,
     help="Jeans on the main subject only, or on every separate object of a photo.",
 )
@@ -187,26 +200,26 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 )
 @click.option(
     "--clicks",
-    "clicks_file",
+    "clicks",
     type=click.Path(dir_okay=False, path_type=Path),
     metavar="FILE.json",
     help="Replay a clicks file (one or several objects; the web page saves them; one input).",
 )
 @click.option(
     "--style",
-    type=click.Choice(["denim", "flat"]),
-    default="denim",
+    type=click.Choice(STYLES),
+    default=DEFAULTS.style,
     show_default=True,
     help="denim texture, or the paper's flat blue.",
 )
-@click.option("--clip/--no-clip", default=True, show_default=True, help="Paint jeans only on the object.")
+@click.option("--clip/--no-clip", default=DEFAULTS.clip, show_default=True, help="Paint jeans only on the object.")
 @click.option("--top", metavar="TEXT", help="Meme caption along the top.")
 @click.option("--bottom", metavar="TEXT", help="Meme caption along the bottom.")
 @click.option("--side-by-side", is_flag=True, help="Output the original and the result side by side.")
 @click.option(
     "--max-pixels",
     type=click.IntRange(1),
-    default=100_000_000,
+    default=DEFAULTS.max_pixels,
     show_default=True,
     help="Refuse images larger than this.",
 )
@@ -218,12 +231,10 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     expose_value=False,
     help="Accepted for compatibility: RAW files decode at full size by default.",
 )
-@click.option(
-    "--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True, help="Where to fit."
-)
+@click.option("--device", type=click.Choice(DEVICES), default="auto", show_default=True, help="Where to fit.")
 @click.option(
     "--backend",
-    type=click.Choice(["auto", "fast", "torch"]),
+    type=click.Choice(("auto", *BACKENDS)),
     default="auto",
     show_default=True,
     help="Fitting code on the CPU: fast (compiled kernel) or torch (the reference); "
@@ -283,48 +294,31 @@ def _main(
     want_json,
     want_svg,
     want_gif,
-    gif_frames,
     report,
-    preset,
-    posture,
-    garment,
-    iterations,
-    seed,
-    starts,
-    kind,
-    silhouette_method,
-    threshold,
-    mask,
-    rect,
-    objects,
-    points,
-    background_points,
-    clicks_file,
-    style,
-    clip,
-    top,
-    bottom,
-    side_by_side,
-    max_pixels,
-    raw_half_size,
     device,
     backend,
     jobs,
     quiet,
     verbose,
+    **values,
 ) -> int:
+    """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
     from jeanscv.plugins import get_garment
     from jeanscv.presets import get_preset
+    from jeanscv.runner import one_line
 
     from .discover import collect
     from .progress import Progress
-    from .worker import Options, Outcome, one_line, wanted_outputs
+    from .worker import Outcome, wanted_outputs
 
-    for lookup, value, hint in ((get_preset, preset, "'--preset'"), (get_garment, garment, "'--garment'")):
+    for lookup, value, hint in (
+        (get_preset, values["preset"], "'--preset'"),
+        (get_garment, values["garment"], "'--garment'"),
+    ):
         try:
             lookup(value)
         except JeansError as exc:
@@ -341,49 +335,22 @@ def _main(
 
     extras = tuple(name for name, wanted in (("json", want_json), ("svg", want_svg), ("gif", want_gif)) if wanted)
     found = collect(list(paths), recursive, output_dir, fmt, extras)
-    if mask is not None and len(found.jobs) + len(found.problems) != 1:
+    if values["mask"] is not None and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--mask needs exactly one input image")
-    if points and len(found.jobs) + len(found.problems) != 1:
+    if values["points"] and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
-    if background_points and not points:
+    if values["background_points"] and not values["points"]:
         raise _usage("--background-point needs a --point on the object too")
-    if clicks_file is not None and len(found.jobs) + len(found.problems) != 1:
+    if values["clicks"] is not None and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
-    options = Options(
-        preset=preset,
-        posture=posture,
-        garment=garment,
-        iterations=iterations,
-        seed=seed,
-        starts=starts,
-        kind=kind,
-        silhouette=silhouette_method,
-        threshold=threshold,
-        mask=mask,
-        rect=rect,
-        objects=objects,
-        points=points,
-        background_points=background_points,
-        clicks=None if clicks_file is None else str(clicks_file),
-        style=style,
-        clip=clip,
-        max_pixels=max_pixels,
-        raw_half_size=raw_half_size,
-        device=device,
-        backend=backend,
-        overwrite=overwrite,
-        top=top,
-        bottom=bottom,
-        side_by_side=side_by_side,
-        gif_frames=gif_frames,
-    )
+    options = JeansOptions(**values, device=device, backend=backend)
 
     progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
     noun = "input" if len(found.jobs) == 1 else "inputs"
     workers, why = _workers(jobs, len(found.jobs))
     progress.info(
         f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
-        f"({why}), device {device} ({backend}), preset {preset}, {iterations} iterations"
+        f"({why}), device {device} ({backend}), preset {options.preset}, {options.iterations} iterations"
     )
     if backend == "fast" and kernels_cached() is False:
         progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
@@ -432,7 +399,7 @@ def _main(
     outcomes: dict[int, Outcome] = {}
     pending = []
     for job in found.jobs:
-        if wanted_outputs(job, options):
+        if wanted_outputs(job, options, overwrite):
             pending.append(job)
         else:
             outcome = Outcome(
@@ -449,9 +416,9 @@ def _main(
     previous = _install_sigterm()
     try:
         if workers > 1 and len(pending) > 1:
-            _run_parallel(pending, options, min(workers, len(pending)), progress, outcomes)
+            _run_parallel(pending, options, overwrite, min(workers, len(pending)), progress, outcomes)
         else:
-            _run_serial(pending, options, progress, outcomes)
+            _run_serial(pending, options, overwrite, progress, outcomes)
     except KeyboardInterrupt:
         code = 130
     except _Terminated:
@@ -522,18 +489,18 @@ def _restore_sigterm(previous) -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run_serial(pending, options, progress, outcomes) -> None:
+def _run_serial(pending, options, overwrite: bool, progress, outcomes) -> None:
     from .worker import process, reuse_freed_memory
 
     reuse_freed_memory()
     for job in pending:
         progress.start(job.display)
-        outcome = process(job, options)
+        outcome = process(job, options, overwrite)
         outcomes[job.index] = outcome
         progress.finish(outcome)
 
 
-def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
+def _run_parallel(pending, options, overwrite: bool, workers: int, progress, outcomes) -> None:
     """Process ``pending`` in ``workers`` spawned processes, each with its share of the cores."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -551,7 +518,7 @@ def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
     )
     clean = False
     try:
-        futures = {pool.submit(process_in_worker, job, options): job for job in pending}
+        futures = {pool.submit(process_in_worker, job, options, overwrite): job for job in pending}
         progress.start(f"{workers} workers")
         for future in as_completed(futures):
             job = futures[future]

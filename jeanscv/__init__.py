@@ -26,6 +26,7 @@ _LAZY = {
     "read_svg": "jeanscv.silhouettes",
     "Silhouette": "jeanscv.silhouettes",
     "JeansResult": "jeanscv.report",
+    "JeansOptions": "jeanscv.options",
     "JeansError": "jeanscv.errors",
     "JalgorithmLoss": "jeanscv.loss",
     "jalgorithm_terms": "jeanscv.loss",

@@ -5,23 +5,26 @@ fit and composite: :func:`apply_jeans`), :mod:`jeanscv.silhouettes` (the
 :class:`Silhouette` and the inputs that need no segmentation), :mod:`jeanscv.drawing`
 (whether an image is a silhouette drawing), :mod:`jeanscv.extraction` (the objects of a
 photo), :mod:`jeanscv.figures` (pictures of a fit), :mod:`jeanscv.report` (the result and
-its JSON report) and :mod:`jeanscv.device` (where a fit runs).
+its JSON report) and :mod:`jeanscv.device` (where a fit runs); :mod:`jeanscv.options`
+(:class:`JeansOptions`, every per-input option).
 """
 
 from __future__ import annotations
 
 from .device import resolve_device
 from .drawing import silhouette_from_drawing
-from .extraction import OBJECTS, extract_silhouette, extract_silhouettes
+from .extraction import extract_silhouette, extract_silhouettes
 from .figures import composite, draw_figure, draw_garment, figure
 from .garments import JEANS
-from .pipeline import KINDS, apply_jeans, fit, load_image, prepare_input
+from .options import KINDS, OBJECTS, JeansOptions
+from .pipeline import apply_jeans, fit, load_image, prepare_input
 from .report import SUBJECT_KEYS, FittedObject, JeansResult
 from .silhouettes import Silhouette, load_mask, read_svg, silhouette_contours, silhouette_from_alpha
 
 __all__ = [
     "JEANS",
     "KINDS",
+    "JeansOptions",
     "JeansResult",
     "Silhouette",
     "SUBJECT_KEYS",

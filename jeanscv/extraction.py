@@ -8,11 +8,9 @@ import numpy as np
 from .errors import JeansError
 from .framing import frame_mask
 from .geometry import mask_box
+from .options import OBJECTS
 from .silhouettes import Silhouette
 from .silhouettes import box_of as _box_of
-
-#: ``one``: the main subject; ``all``: every separate object, each with its own garment.
-OBJECTS = ("one", "all")
 
 
 def extract_silhouette(

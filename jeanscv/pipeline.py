@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -17,19 +17,18 @@ from . import fitter
 from .device import resolve_backend, resolve_device
 from .drawing import silhouette_from_drawing
 from .errors import JeansError
-from .extraction import OBJECTS, extract_silhouettes, object_clicks
+from .extraction import extract_silhouettes, object_clicks
 from .figures import composite, figure
 from .fitter import FitResult
 from .garments import Garment
 from .io.svg import SVG_EXTENSIONS
+from .options import JeansOptions
 from .plugins import get_garment
 from .report import FittedObject, JeansResult
-from .silhouettes import Silhouette, read_svg, silhouette_from_alpha
+from .silhouettes import Silhouette, load_mask, read_svg, silhouette_from_alpha
 
 if TYPE_CHECKING:  # decoding imports Pillow, on first use
     from .io.image import LoadedImage
-
-KINDS = ("auto", "silhouette", "photo")
 
 
 def load_image(path: str | os.PathLike, max_pixels: int = 100_000_000, raw_half_size: bool = False) -> LoadedImage:
@@ -81,34 +80,26 @@ def fit(
 
 
 def prepare_input(
-    source: str | os.PathLike | np.ndarray,
-    kind: str = "auto",
-    silhouette_method: str = "auto",
-    threshold: float | None = None,
-    rect: tuple[int, int, int, int] | None = None,
-    mask: np.ndarray | None = None,
-    max_pixels: int = 100_000_000,
-    raw_half_size: bool = False,
-    objects: str = "one",
-    points: list[tuple[float, float]] | None = None,
-    background_points: list[tuple[float, float]] | None = None,
-    clicks=None,
-) -> tuple[list[Silhouette], str, np.ndarray | None, object | None]:
+    source: str | os.PathLike | np.ndarray, options: JeansOptions | None = None, **overrides: Any
+) -> tuple[list[Silhouette], str, np.ndarray | None, LoadedImage | None]:
     """Decode and segment an input: ``(silhouettes, kind, pixels, loaded_image)``.
 
+    ``options`` (or the defaults) with ``overrides`` (:class:`JeansOptions`' names) say how.
     Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``,
-    ``background_points`` and ``clicks`` are pixels of the photo as displayed, also for
-    a RAW file decoded at half size); silhouette drawings and SVGs give their one shape.
+    ``background_points`` and ``clicks`` are pixels of the photo as displayed, also for a
+    RAW file decoded at half size; ``clicks`` may be a clicks file); silhouette drawings
+    and SVGs give their one shape.
     """
-    if kind not in KINDS:
-        raise JeansError(f"unknown input kind {kind!r} (use {', '.join(KINDS)})")
-    if objects not in OBJECTS:
-        raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
+    options = (options or JeansOptions()).replace(**overrides)
+    kind, points = options.kind, list(options.points)
+    mask = options.mask
+    if isinstance(mask, (str, os.PathLike)):
+        mask = load_mask(mask, options.max_pixels)
     loaded = None
     if isinstance(source, (str, os.PathLike)):
         if Path(source).suffix.lower() in SVG_EXTENSIONS:
             return [read_svg(source)], "silhouette", None, None
-        loaded = load_image(source, max_pixels=max_pixels, raw_half_size=raw_half_size)
+        loaded = load_image(source, max_pixels=options.max_pixels, raw_half_size=options.raw_half_size)
         pixels = loaded.pixels
     else:
         pixels = np.asarray(source)
@@ -122,30 +113,45 @@ def prepare_input(
             if alpha is None:
                 raise JeansError("not a silhouette image (no alpha and not two-toned)")
             return [silhouette_from_alpha(alpha, "drawing")], "silhouette", pixels, loaded
-    if mask is None and (points or background_points or clicks is not None):
+    clicks = None
+    if mask is None and (points or options.background_points or options.clicks is not None):
         # Checked against the photo as displayed, then scaled to the decoded copy.
-        from .clicks import Clicks
-
-        shown = tuple(loaded.original_size) if loaded is not None else pixels.shape[1::-1]
-        wanted = Clicks(tuple(object_clicks(points, background_points, clicks)), getattr(clicks, "image_size", None))
-        wanted.check(shown)
-        wanted = Clicks(wanted.objects, shown)
-        points, background_points = None, None
-        clicks = wanted.scaled(pixels.shape[1::-1]) if shown != pixels.shape[1::-1] else wanted
+        clicks = _clicks(options, loaded.original_size if loaded is not None else pixels.shape[1::-1])
+        if clicks.image_size != pixels.shape[1::-1]:
+            clicks = clicks.scaled(pixels.shape[1::-1])
+        points = []
     elif points and loaded is not None and tuple(loaded.original_size) != pixels.shape[1::-1]:
         points = _to_decoded(points, loaded.original_size, pixels.shape[1::-1])
     silhouettes = extract_silhouettes(
         pixels,
-        silhouette_method,
-        objects=objects,
+        options.silhouette_method,
+        objects=options.objects,
         points=points,
-        background_points=background_points,
         clicks=clicks,
-        threshold=threshold,
-        rect=rect,
+        threshold=options.threshold,
+        rect=options.rect,
         mask=mask,
     )
     return silhouettes, "photo", pixels, loaded
+
+
+def _clicks(options: JeansOptions, shown: tuple[int, int]):
+    """Every object's clicks of ``options`` (``points`` and ``background_points`` first,
+    then ``clicks``, read from its file when it is a path), checked against the photo's
+    size as displayed, ``shown`` = (width, height)."""
+    from .clicks import Clicks, read_clicks
+
+    clicks = options.clicks
+    if isinstance(clicks, (str, os.PathLike)):
+        try:
+            clicks = read_clicks(clicks)
+        except JeansError as exc:
+            raise JeansError(f"clicks file {Path(clicks).name}: {exc}") from None
+    found = Clicks(
+        tuple(object_clicks(options.points, options.background_points, clicks)), getattr(clicks, "image_size", None)
+    )
+    found.check(shown)
+    return Clicks(found.objects, tuple(shown))
 
 
 def _to_decoded(points, original_size: tuple[int, int], size: tuple[int, int]) -> list[tuple[float, float]]:
@@ -158,71 +164,50 @@ def _to_decoded(points, original_size: tuple[int, int], size: tuple[int, int]) -
 
 
 def apply_jeans(
-    source: str | os.PathLike | np.ndarray,
-    *,
-    garment: str | Garment = "jeans",
-    preset: str = "default",
-    iterations: int = 100,
-    seed: int = 0,
-    device: str = "cpu",
-    starts: int | None = None,
-    kind: str = "auto",
-    silhouette_method: str = "auto",
-    threshold: float | None = None,
-    rect: tuple[int, int, int, int] | None = None,
-    mask: np.ndarray | None = None,
-    style: str = "denim",
-    clip: bool = True,
-    max_pixels: int = 100_000_000,
-    raw_half_size: bool = False,
-    objects: str = "one",
-    points: list[tuple[float, float]] | None = None,
-    background_points: list[tuple[float, float]] | None = None,
-    clicks=None,
-    posture: str = "upright",
-    backend: str | None = None,
+    source: str | os.PathLike | np.ndarray, options: JeansOptions | None = None, **overrides: Any
 ) -> JeansResult:
     """Decode, segment, fit and composite in one call.
 
     ``source``: a path (photo, RAW, silhouette PNG or SVG) or a uint8 image array.
+    ``options``: a :class:`JeansOptions` (default: its defaults); ``overrides``: any of its
+    fields by name (``apply_jeans(path, garment="skirt", objects="all")``), over ``options``.
     Silhouette drawings give the paper's figure (black shape, blue jeans on white);
     photos get denim painted on at full resolution. ``objects="all"`` gives every
     separate object of a photo its own garment; ``points`` and ``background_points``
     ((x, y) pixels of the photo as displayed) are one object's positive and negative
-    clicks, ``clicks`` (a :class:`jeanscv.clicks.Clicks`) several objects' (see
-    :func:`extract_silhouettes`). RAW files are decoded at the
-    camera's full size unless ``raw_half_size``. ``posture``: ``upright`` or ``any`` (see
-    :func:`fit`). ``backend``: as in :func:`fit`.
+    clicks, ``clicks`` (a :class:`jeanscv.clicks.Clicks` or a clicks file) several
+    objects' (see :func:`extract_silhouettes`); ``mask`` may be an array or an image file. RAW files are decoded at the camera's full size unless ``raw_half_size``.
+    ``posture``: ``upright`` or ``any`` (see :func:`fit`). ``backend``: as in :func:`fit`.
     """
     from . import _fast
     from .presets import get_preset
 
-    get_preset(preset).with_posture(posture)  # a bad preset or posture fails before the decoding
-    if resolve_backend(backend, resolve_device(device)) == "fast":
+    options = (options or JeansOptions()).replace(**overrides)
+    get_preset(options.preset).with_posture(options.posture)  # a bad preset fails before the decoding
+    if resolve_backend(options.backend, resolve_device(options.device)) == "fast":
         _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
-    silhouettes, resolved_kind, pixels, loaded = prepare_input(
-        source,
-        kind,
-        silhouette_method,
-        threshold,
-        rect,
-        mask,
-        max_pixels,
-        raw_half_size,
-        objects,
-        points,
-        background_points,
-        clicks,
-    )
+    silhouettes, resolved_kind, pixels, loaded = prepare_input(source, options)
     fitted = []
     image = pixels
     for index, silhouette in enumerate(silhouettes):
-        fit_result = fit(silhouette, garment, preset, iterations, seed, device, starts, posture, backend)
+        fit_result = fit(
+            silhouette,
+            options.garment,
+            options.preset,
+            options.iterations,
+            options.seed,
+            options.device,
+            options.starts,
+            options.posture,
+            options.backend,
+        )
         fitted.append(FittedObject(silhouette, fit_result))
         if resolved_kind == "silhouette":
             image = figure(silhouette, fit_result)
         else:
             # Each object gets its own denim noise, painted over the objects before it.
-            image = composite(image, fit_result, silhouette, style=style, clip=clip, seed=seed + index)
+            image = composite(
+                image, fit_result, silhouette, style=options.style, clip=options.clip, seed=options.seed + index
+            )
     main = fitted[0]
     return JeansResult(image, main.silhouette, main.fit, resolved_kind, loaded, fitted)

@@ -30,12 +30,13 @@ import numpy as np
 
 from .errors import JeansError
 from .garments import GARMENTS, Garment
+from .options import SILHOUETTE_METHODS
 
 GARMENT_GROUP = "jeanscv.garments"
 SILHOUETTE_GROUP = "jeanscv.silhouettes"
 
 #: Built-in segmentation methods offered by name (``mask`` needs a mask, so it is not one).
-BUILTIN_SILHOUETTE_METHODS = ("auto", "alpha", "threshold", "grabcut")
+BUILTIN_SILHOUETTE_METHODS = SILHOUETTE_METHODS
 
 SilhouetteMethod = Callable[..., Any]
 
