@@ -10,10 +10,10 @@ The corpus: every file in ``sample_images/``, the shared silhouettes
 (``--photos``), where ``../shared`` exists. Runs: every garment in both styles with
 ``--posture any``, and the default jeans upright.
 
-    python bench/corpus_outputs.py write /tmp/before -j 2
+    python -m bench.corpus_outputs write /tmp/before -j 2
     ... change the code ...
-    python bench/corpus_outputs.py write /tmp/after -j 2
-    python bench/corpus_outputs.py compare /tmp/before /tmp/after
+    python -m bench.corpus_outputs write /tmp/after -j 2
+    python -m bench.corpus_outputs compare /tmp/before /tmp/after
 """
 
 from __future__ import annotations

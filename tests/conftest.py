@@ -1,5 +1,8 @@
 """Shared test set-up: the CLI package importable from a source checkout, and CLI fixtures.
 
+The repository root is on ``sys.path`` (pytest's ``pythonpath``, pyproject.toml), so the
+tests import ``jeanscv`` from a plain checkout and their data from ``testkit``.
+
 After ``pip install -e .`` the CLI is the package ``jeanscv_cli``; in a plain
 checkout ``jeanscv/_command.py`` loads the ``cli/`` folder under that name.
 """
@@ -8,7 +11,6 @@ from __future__ import annotations
 
 import importlib.util
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +21,6 @@ SHARED = ROOT.parent / "shared" / "silhouettes"
 #: The paper's seven silhouettes in SHARED (NAME.png, NAME.svg).
 PAPER_SHAPES = ("person", "vitruvian", "dog", "horse", "tripod", "balldragon", "extra_0")
 
-if importlib.util.find_spec("jeanscv") is None:
-    sys.path.insert(0, str(ROOT))
 if importlib.util.find_spec("jeanscv_cli") is None:
     import jeanscv._command  # noqa: F401  (registers jeanscv_cli from ./cli)
 
@@ -71,7 +71,7 @@ def write_silhouette_png(path: Path, name: str = "person") -> Path:
     if (SHARED / f"{name}.png").is_file():
         shutil.copyfile(SHARED / f"{name}.png", path)
     else:
-        from jeanscv.synthetic import ZOO, silhouette_zoo
+        from testkit.synthetic import ZOO, silhouette_zoo
 
         key = name if name in ZOO else "person"
         alpha = silhouette_zoo([key])[key]

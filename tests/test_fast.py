@@ -26,7 +26,7 @@ from jeanscv.loss import TERM_NAMES, jalgorithm_terms, weighted_total
 from jeanscv.posture import posture
 from jeanscv.presets import get_preset
 from jeanscv.render import polygon_coverage, polygon_edges, stroke_coverage
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 pytestmark = pytest.mark.skipif(not fast_available(), reason="numba is not installed")
 

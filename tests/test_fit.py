@@ -15,7 +15,7 @@ from jeanscv.fitter import fit, initial_placements
 from jeanscv.garments import JEANS
 from jeanscv.posture import posture
 from jeanscv.render import polygon_coverage
-from jeanscv.synthetic import ZOO, silhouette_zoo
+from testkit.synthetic import ZOO, silhouette_zoo
 
 
 @pytest.fixture(scope="module")

@@ -11,13 +11,13 @@ import cv2
 import numpy as np
 import pytest
 from PIL import Image
-from synthetic_photos import iou, two_objects
 
 from jeanscv.api import apply_jeans, extract_silhouettes
 from jeanscv.compositing import polygon_coverage_patch
 from jeanscv.errors import JeansError, OptionError
 from jeanscv.geometry import mask_box
 from jeanscv.silhouette.objects import check_point, object_at, split_objects
+from testkit.synthetic_photos import iou, two_objects
 
 FIT = dict(iterations=40, starts=4)
 CLI_FIT = ("--iterations", "40", "--starts", "4")

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from real_photo_set import photo_paths, reference_mask
-from synthetic_photos import iou
 
 from jeanscv.io.image import load_image
 from jeanscv.silhouette.interactive import ClickSession, simulated_click
+from testkit.real_photo_set import photo_paths, reference_mask
+from testkit.synthetic_photos import iou
 
 # IoU after one and three clicks, 2026-11-25: 0002-01 0.88 0.95, 0003 0.90 0.91, bike
 # 0.48 0.68, boat 0.78 0.83, girl 0.60 0.73, hockey 0.00 0.14, horse 0.91 0.92, im_01
