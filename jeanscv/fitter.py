@@ -14,7 +14,7 @@ from .device import resolve_backend
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .objectives import make_descent, make_objective
+from .objectives import blurred, make_descent, make_objective
 from .posture import posture, tilt_degrees
 from .presets import Preset, get_preset
 from .terms import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES
@@ -110,24 +110,6 @@ def blur_schedule(sigmas: tuple[float, ...], iterations: int) -> list[float]:
     """Sigma per iteration: equal slices for each sigma, then a final unblurred slice."""
     stages = list(sigmas) + [0.0]
     return [stages[min(i * len(stages) // max(iterations, 1), len(stages) - 1)] for i in range(iterations)]
-
-
-def gaussian_kernel(sigma: float) -> np.ndarray:
-    """kornia's normalised 1-D Gaussian of ``2 * ceil(3 sigma) + 1`` taps."""
-    radius = int(math.ceil(3 * sigma))
-    taps = np.exp(-(np.arange(-radius, radius + 1, dtype=np.float64) ** 2) / (2 * sigma**2))
-    return taps / taps.sum()
-
-
-def _blurred(silhouette: np.ndarray, sigma: float) -> np.ndarray:
-    """``S`` blurred as kornia.filters.gaussian_blur2d (separable, zeros outside the canvas)."""
-    if sigma <= 0:
-        return silhouette
-    taps = gaussian_kernel(sigma)
-    radius = len(taps) // 2
-    padded = np.pad(silhouette, radius)
-    rows = sum(w * padded[:, k : k + silhouette.shape[1]] for k, w in enumerate(taps))
-    return sum(w * rows[k : k + silhouette.shape[0]] for k, w in enumerate(taps))
 
 
 def _area_downsampled(silhouette: np.ndarray, factor: int) -> np.ndarray:
@@ -334,7 +316,7 @@ def _fit(
             stop += 1
         if key not in target_cache:
             sigma, factor = key
-            target_cache[key] = _area_downsampled(_blurred(s, sigma), factor)
+            target_cache[key] = _area_downsampled(blurred(s, sigma, backend), factor)
         target = target_cache[key]
         totals, params = descend(optimizer, target, stop - step, half_width(target))
         if len(totals) < stop - step:

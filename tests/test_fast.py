@@ -20,9 +20,10 @@ from conftest import ROOT, paper_silhouette
 from jeanscv import _fast
 from jeanscv.adam import BatchAdam
 from jeanscv.device import fast_available
-from jeanscv.fitter import _area_downsampled, _blurred, fit
+from jeanscv.fitter import _area_downsampled, fit
 from jeanscv.garments import JEANS
 from jeanscv.loss import TERM_NAMES, jalgorithm_terms, weighted_total
+from jeanscv.objectives import blurred
 from jeanscv.posture import posture
 from jeanscv.presets import get_preset
 from jeanscv.render import polygon_coverage, polygon_edges, stroke_coverage
@@ -92,7 +93,7 @@ def test_screening_canvas_and_blurred_targets_equal_torch():
     silhouette = silhouette_zoo(["spider"])["spider"].astype(np.float64)
     small = _area_downsampled(silhouette, 2)
     _assert_same(_random_jeans(rng, 12, size=128), small, "default", half_width=1.25)
-    _assert_same(_random_jeans(rng, 8), _blurred(silhouette, 3.0), "paper")
+    _assert_same(_random_jeans(rng, 8), blurred(silhouette, 3.0), "paper")
 
 
 def test_wildly_off_canvas_and_degenerate_jeans_equal_torch():
@@ -122,6 +123,7 @@ def test_rasterized_maps_equal_the_torch_rasterizer():
 
 
 def test_the_blur_equals_kornias():
+    """The fast path's numpy blur matches kornia's, which the torch path uses."""
     import kornia
 
     silhouette = silhouette_zoo(["crab"])["crab"].astype(np.float64)
@@ -130,7 +132,8 @@ def test_the_blur_equals_kornias():
         theirs = kornia.filters.gaussian_blur2d(
             torch.as_tensor(silhouette)[None, None], (2 * radius + 1,) * 2, (sigma, sigma), border_type="constant"
         )[0, 0].numpy()
-        np.testing.assert_allclose(_blurred(silhouette, sigma), theirs, atol=1e-14)
+        np.testing.assert_array_equal(blurred(silhouette, sigma, "torch"), theirs)
+        np.testing.assert_allclose(blurred(silhouette, sigma, "fast"), theirs, atol=1e-14)
 
 
 @pytest.mark.parametrize(

@@ -174,12 +174,13 @@ def test_posture_classes():
 def test_a_blur_schedule_runs_coarse_to_fine(zoo):
     import dataclasses
 
-    from jeanscv.fitter import _blurred, blur_schedule
+    from jeanscv.fitter import blur_schedule
+    from jeanscv.objectives import blurred as blur
     from jeanscv.presets import get_preset
 
     assert blur_schedule((4.0, 2.0), 9) == [4.0] * 3 + [2.0] * 3 + [0.0] * 3
     silhouette = zoo["disc"].astype(np.float64)
-    blurred = _blurred(silhouette, 3.0)
+    blurred = blur(silhouette, 3.0)
     # Mass is kept (the disc is far from the border) and the edge is softened.
     assert float(blurred.sum()) == pytest.approx(float(silhouette.sum()), rel=1e-4)
     assert float(((blurred > 0.02) & (blurred < 0.98)).sum()) > 2 * float(
