@@ -305,27 +305,15 @@ def _main(
     """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
+    from jeanscv._fast import kernels_cached
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
-    from jeanscv.plugins import get_garment
-    from jeanscv.presets import get_preset
     from jeanscv.runner import one_line
 
     from .discover import collect
     from .progress import Progress
-    from .worker import Outcome, wanted_outputs
 
-    for lookup, value, hint in (
-        (get_preset, values["preset"], "'--preset'"),
-        (get_garment, values["garment"], "'--garment'"),
-    ):
-        try:
-            lookup(value)
-        except JeansError as exc:
-            raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
-
-    from jeanscv._fast import kernels_cached
-
+    _check_names(ctx, values)
     try:
         device = resolve_device(device)
         backend = resolve_backend(None if backend == "auto" else backend, device)
@@ -354,51 +342,61 @@ def _main(
     )
     if backend == "fast" and kernels_cached() is False:
         progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
-    records: list[dict] = []
+    records = _unprocessed(found, progress)
+    pending, outcomes = _split_finished(found.jobs, options, overwrite, progress)
+    return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
+
+
+def _check_names(ctx: click.Context, values: dict) -> None:
+    """``--preset`` and ``--garment`` name something that exists, else a usage error."""
+    from jeanscv.errors import JeansError
+    from jeanscv.plugins import get_garment
+    from jeanscv.presets import get_preset
+    from jeanscv.runner import one_line
+
+    for lookup, value, hint in (
+        (get_preset, values["preset"], "'--preset'"),
+        (get_garment, values["garment"], "'--garment'"),
+    ):
+        try:
+            lookup(value)
+        except JeansError as exc:
+            raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
+
+
+def _record(status: str, name: str, error: str = "", reason: str | None = None) -> dict:
+    """A ``--report`` line of an input that was never processed."""
+    record = {"status": status, "input": name, "output": "", "written": [], "error": error, "seconds": 0.0}
+    if reason is not None:
+        record["reason"] = reason
+    return record
+
+
+def _unprocessed(found, progress) -> list[dict]:
+    """Report what the inputs held besides jobs: problems (failed), unsupported files
+    and jeanscv's own outputs (skipped)."""
+    records = []
     for problem in found.problems:
         progress.error(problem.display, problem.reason)
         progress.counts["failed"] += 1
-        records.append(
-            {
-                "status": "failed",
-                "input": problem.display,
-                "output": "",
-                "written": [],
-                "error": problem.reason,
-                "seconds": 0.0,
-            }
-        )
+        records.append(_record("failed", problem.display, error=problem.reason))
     progress.skip_quietly(len(found.ignored))
-    for name in found.ignored:
-        records.append(
-            {
-                "status": "skipped",
-                "input": name,
-                "output": "",
-                "written": [],
-                "error": "",
-                "reason": "not a supported image type",
-                "seconds": 0.0,
-            }
-        )
+    records += [_record("skipped", name, reason="not a supported image type") for name in found.ignored]
     for name in found.own_outputs:
         progress.info(f"{name}: skipped (a jeanscv output, not an input)")
         progress.counts["skipped"] += 1
-        records.append(
-            {
-                "status": "skipped",
-                "input": name,
-                "output": "",
-                "written": [],
-                "error": "",
-                "reason": "a jeanscv output",
-                "seconds": 0.0,
-            }
-        )
+        records.append(_record("skipped", name, reason="a jeanscv output"))
+    return records
 
-    outcomes: dict[int, Outcome] = {}
+
+def _split_finished(jobs, options, overwrite: bool, progress) -> tuple[list, dict]:
+    """``(pending jobs, outcomes)``: jobs whose outputs all exist (and are newer than the
+    clicks saved beside the photo) are skipped (outcomes) unless ``overwrite``."""
+    from .worker import Outcome, wanted_outputs
+
+    outcomes = {}
     pending = []
-    for job in found.jobs:
+    for job in jobs:
         if wanted_outputs(job, options, overwrite):
             pending.append(job)
         else:
@@ -411,7 +409,12 @@ def _main(
             )
             outcomes[job.index] = outcome
             progress.finish(outcome)
+    return pending, outcomes
 
+
+def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcomes, records, report) -> int:
+    """Process ``pending`` (in ``workers`` processes when several), summarise, write the
+    ``--report``; the exit status."""
     code = 0
     previous = _install_sigterm()
     try:
