@@ -287,57 +287,23 @@ def _fit(
     path[0] = init
     active = np.arange(num_starts)  # which starts are still optimised
     prunings = _prunings(preset, iterations, num_starts)
-    prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
 
     evaluate = make_objective(backend, garment, preset.inter_pairs, preset.weights, device)
     descend = make_descent(backend, garment, preset.inter_pairs, preset.weights, device)
-
-    def half_width(target: np.ndarray) -> float:
-        return STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
-
-    def objective(pixels: np.ndarray, target: np.ndarray, need_grad: bool = True):
-        return evaluate(pixels, target, half_width(target), need_grad)
-
-    screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
-    sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
-
-    def target_key(step: int) -> tuple[float, int]:
-        # Screening runs on a coarser canvas: which starts are promising shows there
-        # at a fraction of the cost, and the normalised vertices carry over as they are.
-        return sigma_per_iteration[step], screen_factor if step <= prune_step else 1
-
-    target_cache: dict[tuple[float, int], np.ndarray] = {}
-    step = 0
-    while step < iterations:
-        # A stretch of steps on one target, up to a pruning, goes to the backend at once.
-        key = target_key(step)
-        stop = step + 1
-        while stop < iterations and stop - 1 not in prunings and target_key(stop) == key:
-            stop += 1
-        if key not in target_cache:
-            sigma, factor = key
-            target_cache[key] = _area_downsampled(blurred(s, sigma, backend), factor)
-        target = target_cache[key]
-        totals, params = descend(optimizer, target, stop - step, half_width(target))
+    for step, stop, target in _stretches(s, preset, iterations, prunings, backend):
+        totals, params = descend(optimizer, target, stop - step, _half_width(target))
         if len(totals) < stop - step:
             raise JeansError("the fit diverged (non-finite loss)")
         history[step:stop, active] = totals
         path[step + 1 : stop + 1, active] = params * CANVAS_SIZE
-        step = stop
-        if step - 1 in prunings:
+        if stop - 1 in prunings:
             # Successive halving: keep optimising only the most promising starts.
-            pruned = step - 1
-            if preset.upright:
-                tilts = [tilt_degrees(v, garment) for v in path[step, active]]
-                order = _upright_survivors(history[pruned, active], tilts, preset.upright.max_tilt, *prunings[pruned])
-            else:
-                postures = [posture(v, garment) for v in path[step, active]]
-                order = _survivors(history[pruned, active], postures, preset)
+            order = _pruned(history[stop - 1, active], path[stop, active], prunings[stop - 1], preset, garment)
             optimizer.keep(order)
             active = active[order]
 
     final = optimizer.params * CANVAS_SIZE
-    totals, _, terms = objective(final, s, need_grad=False)
+    totals, _, terms = evaluate(final, s, _half_width(s), False)
     totals = np.where(np.isfinite(totals), totals, math.inf)
     best = _select(final, totals, s, garment, preset)
     vertices = final[best]
@@ -367,3 +333,48 @@ def _fit(
         device=str(device),
         extra={"backend": backend},
     )
+
+
+def _half_width(target: np.ndarray) -> float:
+    """The strokes' half width in pixels of ``target``'s canvas (a screening canvas is coarser)."""
+    return STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
+
+
+def _stretches(s: np.ndarray, preset: Preset, iterations: int, prunings: dict, backend: str):
+    """``(step, stop, target)`` for each stretch of steps on one target, up to a pruning:
+    the backend runs each at once. Targets are ``s`` blurred by the preset's schedule and,
+    until the first pruning, on its coarser screening canvas; each is made once."""
+    prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
+    screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
+    sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
+
+    def target_key(step: int) -> tuple[float, int]:
+        # Screening runs on a coarser canvas: which starts are promising shows there
+        # at a fraction of the cost, and the normalised vertices carry over as they are.
+        return sigma_per_iteration[step], screen_factor if step <= prune_step else 1
+
+    target_cache: dict[tuple[float, int], np.ndarray] = {}
+    step = 0
+    while step < iterations:
+        key = target_key(step)
+        stop = step + 1
+        while stop < iterations and stop - 1 not in prunings and target_key(stop) == key:
+            stop += 1
+        if key not in target_cache:
+            sigma, factor = key
+            target_cache[key] = _area_downsampled(blurred(s, sigma, backend), factor)
+        yield step, stop, target_cache[key]
+        step = stop
+
+
+def _pruned(
+    objectives: np.ndarray, vertices: np.ndarray, survivors: tuple[int, int] | None, preset: Preset, garment: Garment
+) -> np.ndarray:
+    """Sorted indices of the active starts that go on after a pruning, from their
+    objectives and canvas ``vertices`` at it (:func:`_upright_survivors` under an upright
+    plan, with its ``survivors`` counts; else :func:`_survivors`)."""
+    if preset.upright:
+        tilts = [tilt_degrees(v, garment) for v in vertices]
+        return _upright_survivors(objectives, tilts, preset.upright.max_tilt, *survivors)
+    postures = [posture(v, garment) for v in vertices]
+    return _survivors(objectives, postures, preset)
