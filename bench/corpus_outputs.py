@@ -57,8 +57,8 @@ def runs() -> dict[str, list[str]]:
     return table
 
 
-def write(folder: Path, photos: int, jobs: int) -> None:
-    """Run every run over the corpus, outputs under ``folder/RUN/``."""
+def write(folder: Path, photos: int, jobs: int, only: list[str] | None = None) -> None:
+    """Run every run (or those named in ``only``) over the corpus, outputs under ``folder/RUN/``."""
     files = corpus(photos)
     # Inputs are copied into one flat folder and the command runs in ``folder`` with
     # relative paths, so the reports' file names do not depend on where things were.
@@ -69,6 +69,8 @@ def write(folder: Path, photos: int, jobs: int) -> None:
         shutil.copyfile(path, inputs / f"{path.parent.name}__{path.name}")
     try:
         for name, extra in runs().items():
+            if only and name not in only:
+                continue
             command = ["jeanscv", inputs.name, "-o", name, "--json", "--svg", "--gif", "-j", str(jobs), "-q"]
             done = subprocess.run([*command, *extra], cwd=folder, check=False)
             print(f"{name}: {len(files)} inputs, exit status {done.returncode}", flush=True)
@@ -86,8 +88,14 @@ def _without_seconds(value):
 
 def compare(before: Path, after: Path) -> int:
     """Print the differing, missing and extra files; the number of problems."""
-    names_before = {p.relative_to(before) for p in before.rglob("*") if p.is_file()}
-    names_after = {p.relative_to(after) for p in after.rglob("*") if p.is_file()}
+    # Only the runs both folders hold are compared (a quick check may write only some).
+    common = {p.name for p in before.iterdir() if p.is_dir()} & {p.name for p in after.iterdir() if p.is_dir()}
+    names_before = {
+        p.relative_to(before) for p in before.rglob("*") if p.is_file() and p.relative_to(before).parts[0] in common
+    }
+    names_after = {
+        p.relative_to(after) for p in after.rglob("*") if p.is_file() and p.relative_to(after).parts[0] in common
+    }
     problems = [f"missing: {name}" for name in sorted(names_before - names_after)]
     problems += [f"extra: {name}" for name in sorted(names_after - names_before)]
     same = 0
@@ -103,6 +111,7 @@ def compare(before: Path, after: Path) -> int:
             problems.append(f"differs: {name}")
     for line in problems:
         print(line)
+    print(f"runs compared: {', '.join(sorted(common))}")
     print(f"{same} identical, {len(problems)} problems ({len(names_before)} files before, {len(names_after)} after)")
     return len(problems)
 
@@ -114,12 +123,13 @@ def main() -> int:
     write_parser.add_argument("folder", type=Path)
     write_parser.add_argument("--photos", type=int, default=4, help="shared real photos to include")
     write_parser.add_argument("-j", "--jobs", type=int, default=2)
+    write_parser.add_argument("--runs", nargs="+", choices=list(runs()), help="only these runs (default: all)")
     compare_parser = sub.add_parser("compare", help="compare two folders, ignoring JSON 'seconds'")
     compare_parser.add_argument("before", type=Path)
     compare_parser.add_argument("after", type=Path)
     args = parser.parse_args()
     if args.command == "write":
-        write(args.folder, args.photos, args.jobs)
+        write(args.folder, args.photos, args.jobs, args.runs)
         return 0
     return 1 if compare(args.before, args.after) else 0
 
