@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from ..adam import adam_update
+from ..terms import UPRIGHT_FREE_DEGREES, UPRIGHT_SATURATE_DEGREES
 from .raster import (
     BAND_COLUMNS,
     OUTLINE_POINTS,
@@ -376,8 +377,8 @@ def objective(
         s_total += s_rows[y, size]
     margin = half_width + 2.0
     low, high = -margin, size + margin
-    free = math.cos(math.radians(20.0))
-    saturated = free - math.cos(math.radians(60.0))
+    free = math.cos(math.radians(UPRIGHT_FREE_DEGREES))
+    saturated = free - math.cos(math.radians(UPRIGHT_SATURATE_DEGREES))
 
     finite = np.ones(batch, np.bool_)
     rows_limit = 1
