@@ -3,7 +3,7 @@ skipped when the folder is absent), with the standard simulated user
 (:func:`jeanscv.silhouette.interactive.simulated_click`).
 
 The floors sit about 0.05 under what the click session reaches today after one and
-after three clicks (``python bench/clicks.py`` prints the table): they catch
+after three clicks (``python -m bench.clicks`` prints the table): they catch
 regressions, they are not targets.
 """
 
