@@ -19,6 +19,10 @@ Coordinates follow the package convention (x right, y down, pixel ``(c, r)`` cov
 colour is ``float32`` RGB in 0..255, as ``(3, m, n)`` planes per window or ``(h, w, 3)``
 for a whole patch; coverage, weights and shading fields are ``(h, w) float32`` in
 [0, 1] (shading may exceed 1).
+
+One topic in about 730 lines (the denim's look): the construction details and the weave
+are layers that the painter reads window by window through the same private helpers
+(:class:`_Layer`, :class:`_Field`), which a split would have to export.
 """
 
 from __future__ import annotations
