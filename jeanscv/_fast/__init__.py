@@ -85,11 +85,12 @@ class Objective:
             kept = self._row_sums[key] = (silhouette, sums)
         return kept[1]
 
-    def _arguments(self, silhouette: np.ndarray, half_width: float) -> tuple:
-        """The kernel's arguments that describe the target and the objective, from
-        ``silhouette`` to the capsule cap offsets (:func:`objective.objective`)."""
+    def _target(self, silhouette: np.ndarray, half_width: float):
+        """The kernel's :class:`objective.Target`: ``silhouette`` and this objective."""
+        from .objective import Target
+
         cos_r, sin_r = cap_offsets(half_width)
-        return (
+        return Target(
             silhouette,
             self.row_sums(silhouette),
             half_width,
@@ -123,14 +124,15 @@ class Objective:
         totals = np.empty(vertices.shape[0])
         terms = np.empty((vertices.shape[0], len(TERM_NAMES)))
         grad = np.empty(vertices.shape)
+        target = self._target(silhouette, float(half_width))
         objective(
             vertices,
-            *self._arguments(silhouette, float(half_width)),
+            target,
             need_grad,
             totals,
             terms,
             grad,
-            *scratch(silhouette.shape[0], float(half_width), vertices.shape[1]),
+            scratch(silhouette.shape[0], target.half_width, vertices.shape[1]),
         )
         return totals, grad, terms
 
@@ -155,28 +157,28 @@ class Objective:
             beta1,
             beta2,
             optimizer.eps,
-            *self._arguments(target, float(half_width)),
+            self._target(target, float(half_width)),
             totals,
             path,
-            *scratch(target.shape[0], float(half_width), n),
+            scratch(target.shape[0], float(half_width), n),
         )
         optimizer.steps += done
         return totals[:done], path[:done]
 
 
-_scratch: dict[tuple[int, float, int], tuple[np.ndarray, ...]] = {}
+_scratch: dict = {}
 
 
-def scratch(size: int, half_width: float, n: int) -> tuple[np.ndarray, ...]:
-    """Work arrays of the kernel for a ``size`` canvas and ``n`` edges, made once per
-    process and shared by every objective (the kernels hold the GIL, so no two calls
-    use them at once; each leaves them as the next expects)."""
-    from .objective import band_scratch_rows
+def scratch(size: int, half_width: float, n: int):
+    """The kernel's work arrays (:class:`objective.Scratch`) for a ``size`` canvas and
+    ``n`` edges, made once per process and shared by every objective (the kernels hold
+    the GIL, so no two calls use them at once; each leaves them as the next expects)."""
+    from .objective import Scratch, band_scratch_rows
 
     key = (size, half_width, n)
     if key not in _scratch:
         rows = band_scratch_rows(size, half_width)
-        _scratch[key] = (
+        _scratch[key] = Scratch(
             # The per-pixel bit mask of strokes, as narrow as the edges allow: it is
             # read at every stroke pixel, and a quarter of the bytes stays in cache.
             np.zeros(size * size, np.uint8 if n <= 8 else np.uint16 if n <= 16 else np.int64),

@@ -24,6 +24,7 @@ module; the rasterizer they share lives in ``raster.py``.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -41,6 +42,45 @@ from .raster import (
 )
 
 _EPS = 1e-6
+
+
+class Target(NamedTuple):
+    """What the objective measures candidates against, and how (one per target and
+    garment; the kernels read it, never write it)."""
+
+    s: np.ndarray  # (C, C) float64, the silhouette
+    s_rows: np.ndarray  # (C, C + 1) its prefix sums along rows
+    half_width: float  # the strokes' half width, pixels of this canvas
+    weights: np.ndarray  # (8,) term weights in TERM_NAMES order
+    waist: np.ndarray  # (2,) int64, the waistband's vertices
+    hems: np.ndarray  # (2,) int64, the outer hems' vertices
+    residual: np.ndarray  # (N, N) the affine residual operator
+    is_open: np.ndarray  # (N,) bool edge labels
+    is_closed: np.ndarray  # (N,) bool
+    pair: np.ndarray  # (N, N) bool, pair[i, j] for i < j when the pair counts in L_inter
+    cos_r: np.ndarray  # the capsule cap offsets
+    sin_r: np.ndarray
+
+
+class Scratch(NamedTuple):
+    """Work arrays of :func:`objective`, reused across calls so that no call pays for
+    fresh pages; those marked "kept zero" (or false) must be so on entry and are left so."""
+
+    mask: np.ndarray  # (C * C,) uint8/16 or int64, kept zero: the strokes at each pixel
+    diff: np.ndarray  # (C, C + 2), kept zero
+    touched: np.ndarray  # (C, C + 2) uint8, kept zero: the fill's cells touched by pieces
+    listed: np.ndarray  # (C, C + 2) int64
+    counts: np.ndarray  # (C,) int64, kept zero
+    wind: np.ndarray  # (C, C)
+    cell_grad: np.ndarray  # (C, C + 2)
+    prefix: np.ndarray  # (C, C + 2)
+    band_diff: np.ndarray  # (N, rows, 15), rows >= any band's (band_scratch_rows)
+    band_wind: np.ndarray  # (N, rows, 13)
+    overlap_pixel: np.ndarray  # (C * C,) int64: the overlaps' pixels
+    overlap_bits: np.ndarray  # (C * C,) int64: their strokes
+    overlap_alpha: np.ndarray  # (C * C, N): their alphas
+    overlap_fits: np.ndarray  # (C * C, 2) bool: whether each union stays within 1 there
+    overlap_rows: np.ndarray  # (N, rows) bool, kept false: the band rows holding overlaps
 
 
 def band_scratch_rows(size: int, half_width: float) -> int:
@@ -318,62 +358,34 @@ def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
 
 
 @njit(cache=True)
-def objective(
-    vertices,
-    s,
-    s_rows,
-    half_width,
-    weights,
-    waist,
-    hems,
-    residual,
-    is_open,
-    is_closed,
-    pair,
-    cos_r,
-    sin_r,
-    need_grad,
-    totals,
-    terms,
-    grad,
-    mask,
-    diff,
-    touched,
-    listed,
-    counts,
-    wind,
-    cell_grad,
-    prefix,
-    band_diff,
-    band_wind,
-    overlap_pixel,
-    overlap_bits,
-    overlap_alpha,
-    overlap_fits,
-    overlap_rows,
-):
+def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     """All eight terms of each candidate and the gradient of the weighted total.
 
     Args:
-        vertices: ``(B, N, 2)`` canvas pixels of an ``(C, C)`` silhouette ``s``;
-            s_rows: ``(C, C + 1)`` its prefix sums along rows.
-        weights: ``(8,)`` in term order; residual: the ``(N, N)`` affine residual operator.
-        is_open, is_closed: ``(N,)`` edge labels; pair: ``(N, N)`` bool, ``pair[i, j]``
-            for ``i < j`` when the pair counts in ``L_inter``.
-        cos_r, sin_r: the capsule cap offsets; need_grad: compute ``grad``.
+        vertices: ``(B, N, 2)`` canvas pixels of the ``(C, C)`` silhouette ``target.s``.
+        target: a :class:`Target`; need_grad: compute ``grad``.
         totals: ``(B,)`` out, the weighted totals (:func:`weighted_totals`); terms: ``(B, 8)``
             out; grad: ``(B, N, 2)`` out, d(weighted total)/d vertices.
-        mask: ``(C * C,)`` int64 scratch, all zero (left zero): the strokes at each pixel;
-            diff (all zero, left zero), cell_grad, prefix: ``(C, C + 2)``; touched
-            (uint8, all zero, left zero), listed: ``(C, C + 2)``, counts ``(C,)`` (all zero,
-            left zero): the fill's cells touched by pieces; wind: ``(C, C)``; band_diff:
-            ``(N, rows, 15)``, band_wind: ``(N, rows, 13)`` with rows >= any band's
-            (:func:`band_scratch_rows`); overlap_pixel, overlap_bits: ``(C * C,)`` int64,
-            overlap_alpha: ``(C * C, N)``, overlap_fits: ``(C * C, 2)`` bool: the overlaps'
-            pixels, strokes, alphas and whether each union stays within 1 there;
-            overlap_rows: ``(N, rows)`` bool, all false (left false): the band rows holding
-            overlaps: scratch reused across calls, so that no call pays for fresh pages.
+        scratch: a :class:`Scratch` for this canvas and garment.
     """
+    s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r = target
+    (
+        mask,
+        diff,
+        touched,
+        listed,
+        counts,
+        wind,
+        cell_grad,
+        prefix,
+        band_diff,
+        band_wind,
+        overlap_pixel,
+        overlap_bits,
+        overlap_alpha,
+        overlap_fits,
+        overlap_rows,
+    ) = scratch
     batch, n = vertices.shape[0], vertices.shape[1]
     size = s.shape[0]
     s_total = 0.0
@@ -742,45 +754,7 @@ _adam_update = njit(cache=True)(adam_update)
 
 
 @njit(cache=True)
-def descend(
-    params,
-    exp_avg,
-    exp_avg_sq,
-    step_sizes,
-    bias2,
-    beta1,
-    beta2,
-    eps,
-    s,
-    s_rows,
-    half_width,
-    weights,
-    waist,
-    hems,
-    residual,
-    is_open,
-    is_closed,
-    pair,
-    cos_r,
-    sin_r,
-    totals,
-    path,
-    mask,
-    diff,
-    touched,
-    listed,
-    counts,
-    wind,
-    cell_grad,
-    prefix,
-    band_diff,
-    band_wind,
-    overlap_pixel,
-    overlap_bits,
-    overlap_alpha,
-    overlap_fits,
-    overlap_rows,
-):
+def descend(params, exp_avg, exp_avg_sq, step_sizes, bias2, beta1, beta2, eps, target, totals, path, scratch):
     """The fit's Adam steps on one target in one call: a step crosses into Python once per
     stretch of steps on the same target instead of a dozen times (about 0.1 ms a step, a
     tenth of a default fit). Adam steps on normalised ``params`` ``(B, N, 2)`` (and its
@@ -793,47 +767,14 @@ def descend(
     after each step ``(steps, B, N, 2)``; returns the number of steps done, fewer when
     every start diverged (that step's totals written, no update made).
     """
-    size = float(s.shape[0])
+    size = float(target.s.shape[0])
     batch = params.shape[0]
     pixels = np.empty_like(params)
     grad = np.empty_like(params)
-    terms = np.empty((batch, weights.shape[0]))
+    terms = np.empty((batch, target.weights.shape[0]))
     for k in range(step_sizes.shape[0]):
         pixels[:] = params * size
-        objective(
-            pixels,
-            s,
-            s_rows,
-            half_width,
-            weights,
-            waist,
-            hems,
-            residual,
-            is_open,
-            is_closed,
-            pair,
-            cos_r,
-            sin_r,
-            True,
-            totals[k],
-            terms,
-            grad,
-            mask,
-            diff,
-            touched,
-            listed,
-            counts,
-            wind,
-            cell_grad,
-            prefix,
-            band_diff,
-            band_wind,
-            overlap_pixel,
-            overlap_bits,
-            overlap_alpha,
-            overlap_fits,
-            overlap_rows,
-        )
+        objective(pixels, target, True, totals[k], terms, grad, scratch)
         any_finite = False
         for b in range(batch):
             finite = math.isfinite(totals[k, b])
