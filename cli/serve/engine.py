@@ -1,0 +1,497 @@
+"""The server's one adapter to the library and the command line's worker.
+
+Everything the page does to a photo goes through here: decode an upload, the
+automatic result, a result from clicks, the full-resolution downloads, and a folder
+photo's outputs. The HTTP layer (:mod:`.app`) never calls :mod:`jeanscv` itself.
+
+Clicks become silhouettes in :func:`silhouettes_from_clicks` (``ClickSession.segment``
+per object, framed as :func:`jeanscv.api.extract_silhouettes` frames a point's object);
+when the library's ``apply_jeans(..., clicks=...)`` lands, that function and
+:func:`write_folder_outputs` are the places to switch.
+
+Coordinates sent to and from the page are pixels of the photo as displayed (x right,
+y down, package convention); the interactive preview is a copy whose long side is at
+most :data:`PREVIEW_SIDE`, and the full-resolution picture is made on download.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from jeanscv import api
+from jeanscv.clicks import Clicks, read_clicks, sidecar_path, write_clicks
+from jeanscv.errors import JeansError
+from jeanscv.framing import Framing, frame_mask
+from jeanscv.geometry import mask_box
+
+from .. import worker
+from ..discover import Job
+from ..extras import optimisation_gif, svg_document
+
+#: Long side of the interactive preview: clicks on 12-MP photos stay quick.
+PREVIEW_SIDE = 1280
+#: Trajectory frames sent to the page for the fit's animation.
+ANIMATION_FRAMES = 40
+#: Contour vertices sent to the page are simplified to this many image pixels (at most).
+CONTOUR_TOLERANCE = 1.5
+STYLES = ("denim", "flat")
+POSTURES = ("upright", "any")
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """The options the page offers (everything else is the command line's default)."""
+
+    style: str = "denim"
+    garment: str = "jeans"
+    posture: str = "upright"
+    top: str = ""
+    bottom: str = ""
+    side_by_side: bool = False
+
+    @classmethod
+    def from_json(cls, data) -> RenderOptions:
+        """Options from the page's JSON; JeansError naming a bad value."""
+        from jeanscv.plugins import available_garments
+
+        if data is None:
+            return cls()
+        if not isinstance(data, dict):
+            raise JeansError("options must be a JSON object")
+        options = cls(
+            style=str(data.get("style", "denim")),
+            garment=str(data.get("garment", "jeans")),
+            posture=str(data.get("posture", "upright")),
+            top=str(data.get("top") or "")[:200],
+            bottom=str(data.get("bottom") or "")[:200],
+            side_by_side=bool(data.get("side_by_side", False)),
+        )
+        if options.style not in STYLES:
+            raise JeansError(f"unknown style {options.style!r} (use denim or flat)")
+        if options.posture not in POSTURES:
+            raise JeansError(f"unknown posture {options.posture!r} (use upright or any)")
+        if options.garment not in available_garments():
+            raise JeansError(f"unknown garment {options.garment!r}")
+        return options
+
+    def fit_key(self) -> tuple:
+        """What the fits depend on (captions and layout do not)."""
+        return (self.garment, self.posture)
+
+    def worker_options(self, backend: str | None) -> worker.Options:
+        return worker.Options(
+            garment=self.garment,
+            posture=self.posture,
+            style=self.style,
+            top=self.top or None,
+            bottom=self.bottom or None,
+            side_by_side=self.side_by_side,
+            backend=backend,
+            overwrite=True,
+        )
+
+
+def garments() -> list[str]:
+    """The garment names the page offers."""
+    from jeanscv.plugins import available_garments
+
+    return sorted(available_garments())
+
+
+def default_backend() -> str:
+    """The fitting backend the command line would pick on this machine's CPU."""
+    from jeanscv._fast import backend
+
+    return backend(None, "cpu")
+
+
+def warm_up() -> None:
+    """Compile or load the fit kernels now, so the first photo does not wait for them."""
+    from jeanscv import _fast
+
+    if default_backend() == "fast":
+        _fast.warm_up()
+
+
+@dataclass
+class Photo:
+    """A decoded photo or silhouette, held while the page works on it.
+
+    ``pixels``: the decoded image at full size (None for an SVG); ``size``: (width,
+    height) as displayed, the frame of every coordinate; ``preview``: the picture the
+    page shows, long side at most :data:`PREVIEW_SIDE`; ``auto``: the automatic
+    silhouettes at full size.
+    """
+
+    name: str
+    kind: str  # "photo" or "silhouette"
+    pixels: np.ndarray | None
+    loaded: object | None  # LoadedImage
+    size: tuple[int, int]
+    preview: np.ndarray
+    auto: list
+    auto_error: str = ""
+    original_jpeg: bytes | None = None
+    _session: object | None = None
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
+
+    @property
+    def scale(self) -> float:
+        """Preview pixels per photo pixel."""
+        return self.preview.shape[1] / self.size[0]
+
+    @property
+    def nbytes(self) -> int:
+        """Memory this photo holds (what the store's byte cap counts)."""
+        total = self.preview.nbytes + (0 if self.pixels is None else self.pixels.nbytes)
+        total += sum(int(s.mask.nbytes) for s in self.auto)
+        if self._session is not None:
+            total += self.pixels.nbytes // 8  # working copies and cached masks
+        return total
+
+    def session(self):
+        """The click session (made on first use: about half a second). Hold ``lock``."""
+        if self._session is None:
+            from jeanscv.silhouette.interactive import ClickSession
+
+            self._session = ClickSession(self.pixels)
+        return self._session
+
+
+def _downscale(pixels: np.ndarray, side: int) -> np.ndarray:
+    height, width = pixels.shape[:2]
+    scale = min(1.0, side / max(width, height))
+    if scale >= 1.0:
+        return np.ascontiguousarray(pixels)
+    size = (max(1, round(width * scale)), max(1, round(height * scale)))
+    return cv2.resize(pixels, size, interpolation=cv2.INTER_AREA)
+
+
+def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
+    """A silhouette figure at preview size; an SVG's figure is drawn on the 256 canvas,
+    which its framing places on the drawing's own width and height."""
+    width, height = (int(v) for v in silhouette.framing.image_size)
+    scale = min(1.0, PREVIEW_SIDE / max(width, height))
+    target = (max(1, round(width * scale)), max(1, round(height * scale)))
+    if silhouette.mask_is_canvas:
+        forward = silhouette.framing.canvas_to_image * scale
+        return cv2.warpAffine(picture, forward, target, flags=cv2.INTER_AREA, borderValue=(255, 255, 255))
+    if picture.shape[1::-1] == target:
+        return picture
+    return cv2.resize(picture, target, interpolation=cv2.INTER_AREA)
+
+
+def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
+    """Decode and segment a file (an upload's temporary copy, or a folder's photo).
+
+    Raises JeansError with the command line's one-line reason for a bad file.
+    """
+    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels)
+    if kind == "silhouette":
+        first = silhouettes[0]
+        size = tuple(int(v) for v in first.framing.image_size)
+        preview = _figure_preview(api.figure(first), first)
+        return Photo(name, kind, None, None, size, preview, silhouettes)
+    height, width = pixels.shape[:2]
+    auto = [_compact(s) for s in silhouettes]
+    preview = _downscale(pixels, PREVIEW_SIDE)
+    return Photo(name, kind, pixels, loaded, (width, height), preview, auto)
+
+
+def open_photo_without_subject(path: Path, name: str, max_pixels: int, reason: str) -> Photo:
+    """A photo the automatic segmentation found nothing in: decoded for clicks only."""
+    loaded = api.load_image(path, max_pixels=max_pixels)
+    pixels = loaded.pixels
+    if pixels.ndim == 2:
+        pixels = np.repeat(pixels[..., None], 3, axis=-1)
+    height, width = pixels.shape[:2]
+    return Photo(name, "photo", pixels, loaded, (width, height), _downscale(pixels, PREVIEW_SIDE), [], reason)
+
+
+def _compact(silhouette):
+    """A photo's silhouette with a bool mask (a 12-MP float mask is 48 MB)."""
+    if silhouette.mask.dtype != bool:
+        silhouette = replace(silhouette, mask=np.asarray(silhouette.mask) >= 0.5)
+    return silhouette
+
+
+def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
+    """One full-size silhouette per clicked object, in order (the ClickSession adapter)."""
+    clicks.check(photo.size)
+    with photo.lock:
+        session = photo.session()
+        found = []
+        for index, obj in enumerate(clicks.objects):
+            segmentation = session.segment(list(obj.positive), list(obj.negative))
+            if not segmentation.mask.any():
+                raise JeansError(f"object {index + 1}: the clicks give an empty mask")
+            canvas, framing = frame_mask(segmentation.mask)
+            details = {**segmentation.details, "box": list(mask_box(segmentation.mask)), "point": list(obj.positive[0])}
+            found.append(
+                api.Silhouette(
+                    segmentation.mask, canvas, framing, segmentation.method, segmentation.contour, details=details
+                )
+            )
+    return found
+
+
+def _clicks_key(clicks: Clicks | None) -> tuple:
+    if clicks is None:
+        return ()
+    return tuple((obj.positive, obj.negative) for obj in clicks.objects)
+
+
+def fitted_objects(photo: Photo, clicks: Clicks | None, options: RenderOptions, backend: str | None) -> list:
+    """``[FittedObject]``: the clicked objects (or the automatic ones), each fitted.
+
+    Fits are remembered per photo by clicks and options, so a caption change or a
+    download does not fit again.
+    """
+    key = (options.fit_key(), _clicks_key(clicks))
+    cached = photo.fits.get(key)
+    if cached is not None:
+        return cached
+    if clicks is None:
+        if not photo.auto:
+            raise JeansError(photo.auto_error or "no object found to segment")
+        silhouettes = photo.auto
+    else:
+        if photo.kind != "photo":
+            raise JeansError("a silhouette drawing has nothing to click: its shape is the subject")
+        silhouettes = silhouettes_from_clicks(photo, clicks)
+    objects = [
+        api.FittedObject(s, api.fit(s, options.garment, posture=options.posture, backend=backend)) for s in silhouettes
+    ]
+    if len(photo.fits) > 32:  # a long session of clicks: keep the memory bounded
+        photo.fits.pop(next(iter(photo.fits)))
+    photo.fits[key] = objects
+    return objects
+
+
+def _scaled(silhouette, scale: float, shape: tuple[int, int]):
+    """The silhouette on a copy of its photo scaled by ``scale`` (shape (h, w))."""
+    mask = silhouette.mask
+    small = cv2.resize(mask.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    framing = silhouette.framing
+    scaled = Framing((framing.origin[0] * scale, framing.origin[1] * scale), framing.side * scale, (shape[1], shape[0]))
+    return replace(silhouette, mask=small, framing=framing if silhouette.mask_is_canvas else scaled)
+
+
+def preview_picture(photo: Photo, objects: list, options: RenderOptions) -> np.ndarray:
+    """The jeans on the preview copy (no captions: the page draws them live)."""
+    if photo.kind == "silhouette":
+        first = objects[0]
+        return _figure_preview(api.figure(first.silhouette, first.fit), first.silhouette)
+    image = photo.preview
+    scale = photo.scale
+    for index, obj in enumerate(objects):
+        small = _scaled(obj.silhouette, scale, image.shape[:2])
+        image = api.composite(image, obj.fit, small, style=options.style, seed=index)
+    return image
+
+
+def full_result(photo: Photo, objects: list, options: RenderOptions):
+    """A :class:`jeanscv.api.JeansResult` at full resolution, as the command line makes it."""
+    if photo.kind == "silhouette":
+        first = objects[0]
+        image = api.figure(first.silhouette, first.fit)
+        return api.JeansResult(image, first.silhouette, first.fit, "silhouette", None, objects)
+    image = photo.pixels
+    for index, obj in enumerate(objects):
+        image = api.composite(image, obj.fit, obj.silhouette, style=options.style, seed=index)
+    return api.JeansResult(image, objects[0].silhouette, objects[0].fit, "photo", photo.loaded, objects)
+
+
+def _simplified(points: np.ndarray) -> list:
+    contour = np.asarray(points, dtype=np.float32).reshape(-1, 1, 2)
+    if len(contour) > 8:
+        contour = cv2.approxPolyDP(contour, CONTOUR_TOLERANCE, True)
+    return np.round(contour.reshape(-1, 2).astype(np.float64), 1).tolist()
+
+
+def page_objects(photo: Photo, objects: list) -> list[dict]:
+    """What the page draws over the photo, in photo pixels: outline, jeans, the fit's path."""
+    entries = []
+    for obj in objects:
+        silhouette, fit = obj.silhouette, obj.fit
+        if silhouette.mask_is_canvas:
+            contours = api.silhouette_contours(silhouette)
+        elif silhouette.contour is not None and len(silhouette.contour) >= 3:
+            contours = [silhouette.contour]
+        else:
+            contours = api.silhouette_contours(silhouette)
+        trajectory = np.asarray(fit.trajectory, dtype=np.float64)
+        steps = np.unique(np.round(np.linspace(0, len(trajectory) - 1, ANIMATION_FRAMES)).astype(int))
+        entries.append(
+            {
+                "outline": [_simplified(c) for c in contours if len(c) >= 3],
+                "jeans": np.round(silhouette.framing.to_image(fit.vertices), 1).tolist(),
+                "trajectory": np.round(silhouette.framing.to_image(trajectory[steps]), 1).tolist(),
+                "method": silhouette.method,
+                "box": [int(v) for v in api._box_of(silhouette)],
+            }
+        )
+    return entries
+
+
+def encode_preview(pixels: np.ndarray) -> bytes:
+    """The preview as a JPEG (quality 88: small and quick to send)."""
+    image = Image.fromarray(np.ascontiguousarray(pixels[..., :3]) if pixels.ndim == 3 else pixels)
+    buffer = io.BytesIO()
+    image.save(buffer, "JPEG", quality=88)
+    return buffer.getvalue()
+
+
+def output_name(photo: Photo, suffix: str) -> str:
+    """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs."""
+    return Path(photo.name).stem + ".jeans" + suffix
+
+
+def download(
+    photo: Photo, objects: list, options: RenderOptions, kind: str, clicks: Clicks | None
+) -> tuple[bytes, str]:
+    """``(bytes, file name)`` of one download: ``image``, ``meme``, ``json``, ``svg``, ``gif`` or ``clicks``."""
+    from jeanscv.io.write import output_extension
+
+    if kind == "clicks":
+        if clicks is None:
+            raise JeansError("no clicks yet: click the photo first")
+        return clicks.dumps().encode("utf-8"), Path(photo.name).stem + ".clicks.json"
+    result = full_result(photo, objects, options)
+    picture_suffix = output_extension(photo.name) if photo.kind == "photo" else ".png"
+    job = Job(0, Path(photo.name), photo.name, {"image": Path(output_name(photo, picture_suffix))})
+    if kind in ("image", "meme"):
+        wanted = options if kind == "meme" else replace(options, top="", bottom="", side_by_side=False)
+        pixels = worker.picture(result, wanted.worker_options(None))
+        target = Path(output_name(photo, picture_suffix))
+        return worker._encode(target, pixels, result), target.name
+    if kind == "json":
+        return worker.report_json(result, job).encode("utf-8"), output_name(photo, ".json")
+    if kind == "svg":
+        polygons = [obj.silhouette.framing.to_image(obj.fit.vertices) for obj in objects]
+        contours = [c for obj in objects for c in api.silhouette_contours(obj.silhouette)]
+        text = svg_document(polygons, contours, tuple(int(v) for v in photo.size), f"jeanscv: {photo.name}")
+        return text.encode("utf-8"), output_name(photo, ".svg")
+    if kind == "gif":
+        return optimisation_gif(result, 50), output_name(photo, ".gif")
+    raise JeansError(f"unknown download {kind!r}")
+
+
+def report_summary(photo: Photo, objects: list) -> dict:
+    """The few report fields the page shows."""
+    first = objects[0]
+    details = first.silhouette.details
+    summary = {
+        "objects": len(objects),
+        "method": first.silhouette.method,
+        "objective": round(float(first.fit.objective), 4),
+        "uncertain": bool(details.get("uncertain", False)),
+    }
+    return summary
+
+
+# ------------------------------------------------------------------------- folder mode
+
+
+def folder_jobs(folder: Path) -> list[Job]:
+    """The folder's photos as the command line finds them (``jeanscv FOLDER``), in order."""
+    from ..discover import collect
+
+    return collect([str(folder)]).jobs
+
+
+def saved_clicks(job: Job) -> Clicks | None:
+    """The photo's clicks sidecar, when it has a usable one."""
+    path = sidecar_path(job.path)
+    if not path.is_file():
+        return None
+    try:
+        return read_clicks(path)
+    except JeansError:
+        return None
+
+
+def output_stale(job: Job) -> bool:
+    """Whether the folder photo's output is missing, or older than its clicks sidecar."""
+    output = job.outputs["image"]
+    if not output.exists():
+        return True
+    sidecar = sidecar_path(job.path)
+    return sidecar.exists() and sidecar.stat().st_mtime > output.stat().st_mtime
+
+
+def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> str:
+    """Make the folder photo's output as ``jeanscv FOLDER`` does; '' or the failure's reason.
+
+    A photo with a clicks sidecar is made from its clicks (until the command line reads
+    sidecars itself, through this adapter, with the same pixels, fit and encoder).
+    """
+    clicks = saved_clicks(job)
+    if clicks is None:
+        outcome = worker.process(job, worker.Options(backend=backend, overwrite=True, max_pixels=max_pixels))
+        return outcome.error if outcome.status == "failed" else ""
+    try:
+        photo = open_photo(job.path, job.path.name, max_pixels)
+    except JeansError as exc:
+        if "no object found" not in str(exc):
+            return worker.failure_reason(exc)
+        photo = open_photo_without_subject(job.path, job.path.name, max_pixels, str(exc))
+    try:
+        write_clicked_output(job, photo, clicks, RenderOptions(), backend)
+    except Exception as exc:  # noqa: BLE001 - one line for the gallery, as the command line gives
+        return worker.failure_reason(exc)
+    return ""
+
+
+def write_clicked_output(job: Job, photo: Photo, clicks: Clicks, options: RenderOptions, backend: str | None) -> None:
+    """Write the folder photo's clicks sidecar and its output made from those clicks."""
+    from jeanscv.io.write import atomic_write_bytes
+
+    objects = fitted_objects(photo, clicks, options, backend)
+    result = full_result(photo, objects, options)
+    target = job.outputs["image"]
+    data = worker._encode(target, worker.picture(result, options.worker_options(backend)), result)
+    sidecar = sidecar_path(job.path)
+    if saved_clicks(job) != clicks:
+        write_clicks(sidecar, clicks)
+    atomic_write_bytes(target, data)
+
+
+def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
+    """The page's clicks (``[{"positive": [[x, y]...], "negative": [...]}...]``), or None for none."""
+    from jeanscv.clicks import parse_clicks
+
+    if data is None or data == []:
+        return None
+    if not isinstance(data, list):
+        raise JeansError('"objects" must be a list of {"positive": [[x, y], ...], "negative": [...]}')
+    objects = [obj for obj in data if isinstance(obj, dict) and obj.get("positive")]
+    if not objects:
+        return None
+    document = {"format": "jeanscv-clicks", "version": 1, "objects": objects}
+    clicks = parse_clicks(json.loads(json.dumps(document)))
+    return Clicks(clicks.objects, (int(size[0]), int(size[1])))
+
+
+def thumbnail(path: Path, side: int) -> bytes:
+    """A JPEG of an output picture with its long side at most ``side`` (for the gallery)."""
+    with Image.open(path) as image:
+        image.draft("RGB", (side, side))
+        image = image.convert("RGBA") if image.mode in ("RGBA", "LA", "P") else image.convert("RGB")
+        image.thumbnail((side, side))
+        if image.mode == "RGBA":
+            white = Image.new("RGB", image.size, (255, 255, 255))
+            white.paste(image, mask=image.getchannel("A"))
+            image = white
+        buffer = io.BytesIO()
+        image.save(buffer, "JPEG", quality=85)
+    return buffer.getvalue()
