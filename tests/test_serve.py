@@ -9,19 +9,18 @@ import threading
 from functools import cache
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 from conftest import write_silhouette_png
 from PIL import Image
 from synthetic_photos import two_objects
 from test_bad_inputs import BAD_FILES
+from test_objects import inside_point, share_on
 
 starlette = pytest.importorskip("starlette")
 from starlette.testclient import TestClient  # noqa: E402
 
 from jeanscv.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
-from jeanscv.compositing import polygon_coverage_patch  # noqa: E402
 from jeanscv_cli.serve import engine  # noqa: E402
 from jeanscv_cli.serve.app import Config, create_app  # noqa: E402
 
@@ -37,19 +36,6 @@ def png_bytes(pixels: np.ndarray) -> bytes:
     buffer = io.BytesIO()
     Image.fromarray(pixels).save(buffer, "PNG")
     return buffer.getvalue()
-
-
-def inside_point(mask: np.ndarray) -> tuple[float, float]:
-    """A pixel centre deep inside ``mask`` (the maximum of its distance transform)."""
-    distance = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5)
-    y, x = np.unravel_index(np.argmax(distance), distance.shape)
-    return float(x) + 0.5, float(y) + 0.5
-
-
-def share_on(vertices_image, mask: np.ndarray) -> float:
-    """The share of the garment polygon's area (exact coverage) that lies on ``mask``."""
-    coverage = polygon_coverage_patch(np.asarray(vertices_image, np.float64), *mask.shape)
-    return float((coverage * mask).sum() / coverage.sum())
 
 
 @pytest.fixture

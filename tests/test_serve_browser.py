@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 from PIL import Image
 from synthetic_photos import two_objects
-from test_serve import inside_point, png_bytes, share_on
+from test_objects import inside_point, share_on
+from test_serve import png_bytes
 
 CHROMIUM = os.environ.get("JEANSCV_CHROMIUM", "/usr/bin/chromium")
 

@@ -50,7 +50,7 @@ NAME.clicks.json clicks files, which a later 'jeanscv FOLDER' run uses.
 @click.option(
     "--memory-mb",
     type=click.IntRange(64),
-    default=600,
+    default=400,
     show_default=True,
     help="Memory for the photos and results kept; the oldest are dropped past it.",
 )
@@ -58,7 +58,7 @@ NAME.clicks.json clicks files, which a later 'jeanscv FOLDER' run uses.
 @click.option(
     "--queue",
     type=click.IntRange(0, 256),
-    default=4,
+    default=8,
     show_default=True,
     help="Requests that may wait for a worker; more are answered 'busy, retry' (503).",
 )

@@ -32,7 +32,7 @@ from .store import Busy, Pool, Store
 DEFAULT_MAX_UPLOAD = 200 << 20
 DEFAULT_MAX_PIXELS = 100_000_000
 #: Default memory for the photos and results kept (a 12-MP photo holds about 60 MB).
-DEFAULT_STORE_BYTES = 600 << 20
+DEFAULT_STORE_BYTES = 400 << 20
 DOWNLOADS = ("image", "meme", "json", "svg", "gif", "clicks")
 _MEDIA = {
     ".png": "image/png",
@@ -61,7 +61,7 @@ class Config:
     max_pixels: int = DEFAULT_MAX_PIXELS
     store_bytes: int = DEFAULT_STORE_BYTES
     workers: int = 1
-    queue: int = 4
+    queue: int = 8
     backend: str | None = None
     warm: bool = True
     extra_names: tuple[str, ...] = field(default_factory=tuple)
@@ -69,12 +69,13 @@ class Config:
 
 @dataclass
 class Result:
-    """One render: what the downloads are made from."""
+    """One render: what its downloads are made from. The fitted objects stay with the
+    photo (a few per photo, see :func:`engine.fitted_objects`), not here: a result holds
+    no full-size mask, so many results cost little memory."""
 
     photo_id: str
     clicks: object | None  # Clicks
     options: engine.RenderOptions
-    objects: list
     preview: bytes
     downloads: dict = field(default_factory=dict)  # kind -> (bytes, name), made on demand
 
@@ -162,7 +163,7 @@ def create_app(config: Config) -> Guard:
     def render(photo_id: str, photo: engine.Photo, clicks, render_options) -> dict:
         objects = engine.fitted_objects(photo, clicks, render_options, state.backend)
         preview = engine.encode_preview(engine.preview_picture(photo, objects, render_options))
-        result = Result(photo_id, clicks, render_options, objects, preview)
+        result = Result(photo_id, clicks, render_options, preview)
         result_id = state.results.put(result, _result_bytes(result))
         state.photos.resize(photo_id, photo.nbytes)
         return {
@@ -272,7 +273,7 @@ def create_app(config: Config) -> Guard:
         made = result.downloads.get(key)
         if made is None:
             try:
-                made = await state.pool.run(engine.download, photo, result.objects, wanted, kind, result.clicks)
+                made = await state.pool.run(make_download, photo, result, wanted, kind)
             except Busy:
                 return _busy()
             except Exception as exc:  # noqa: BLE001
@@ -297,6 +298,11 @@ def create_app(config: Config) -> Guard:
         return Response(
             photo.original_jpeg, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"}
         )
+
+    def make_download(photo: engine.Photo, result: Result, wanted: engine.RenderOptions, kind: str):
+        objects = engine.fitted_objects(photo, result.clicks, wanted, state.backend)
+        state.photos.resize(result.photo_id, photo.nbytes)
+        return engine.download(photo, objects, wanted, kind, result.clicks)
 
     # ------------------------------------------------------------------ folder mode
     def folder_items() -> list:

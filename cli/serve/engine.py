@@ -42,6 +42,8 @@ PREVIEW_SIDE = 1280
 ANIMATION_FRAMES = 40
 #: Contour vertices sent to the page are simplified to this many image pixels (at most).
 CONTOUR_TOLERANCE = 1.5
+#: Fitted results kept per photo (the latest clicks, and a download's): each holds full-size masks.
+FITS_KEPT = 3
 STYLES = ("denim", "flat")
 POSTURES = ("upright", "any")
 
@@ -153,7 +155,9 @@ class Photo:
     def nbytes(self) -> int:
         """Memory this photo holds (what the store's byte cap counts)."""
         total = self.preview.nbytes + (0 if self.pixels is None else self.pixels.nbytes)
-        total += sum(int(s.mask.nbytes) for s in self.auto)
+        masks = {id(s.mask): s.mask.nbytes for s in self.auto}
+        masks |= {id(o.silhouette.mask): o.silhouette.mask.nbytes for fit in self.fits.values() for o in fit}
+        total += sum(masks.values())
         if self._session is not None:
             total += self.pixels.nbytes // 8  # working copies and cached masks
         return total
@@ -257,9 +261,11 @@ def fitted_objects(photo: Photo, clicks: Clicks | None, options: RenderOptions, 
     download does not fit again.
     """
     key = (options.fit_key(), _clicks_key(clicks))
-    cached = photo.fits.get(key)
-    if cached is not None:
-        return cached
+    with photo.lock:
+        cached = photo.fits.pop(key, None)
+        if cached is not None:
+            photo.fits[key] = cached  # the most recently used last
+            return cached
     if clicks is None:
         if not photo.auto:
             raise JeansError(photo.auto_error or "no object found to segment")
@@ -271,16 +277,21 @@ def fitted_objects(photo: Photo, clicks: Clicks | None, options: RenderOptions, 
     objects = [
         api.FittedObject(s, api.fit(s, options.garment, posture=options.posture, backend=backend)) for s in silhouettes
     ]
-    if len(photo.fits) > 32:  # a long session of clicks: keep the memory bounded
-        photo.fits.pop(next(iter(photo.fits)))
-    photo.fits[key] = objects
+    with photo.lock:
+        while len(photo.fits) >= FITS_KEPT:  # each holds full-size masks: keep a few
+            photo.fits.pop(next(iter(photo.fits)))
+        photo.fits[key] = objects
     return objects
 
 
 def _scaled(silhouette, scale: float, shape: tuple[int, int]):
     """The silhouette on a copy of its photo scaled by ``scale`` (shape (h, w))."""
     mask = silhouette.mask
-    small = cv2.resize(mask.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    if mask.dtype == bool:  # area-averaged as 8 bits: a quarter of a float copy's memory traffic
+        plane = cv2.resize(mask.view(np.uint8) * np.uint8(255), (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+        small = plane.astype(np.float32) / 255.0
+    else:
+        small = cv2.resize(mask.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
     framing = silhouette.framing
     scaled = Framing((framing.origin[0] * scale, framing.origin[1] * scale), framing.side * scale, (shape[1], shape[0]))
     return replace(silhouette, mask=small, framing=framing if silhouette.mask_is_canvas else scaled)
