@@ -3,7 +3,7 @@ Playwright (never ``playwright install``: no browser is downloaded).
 
 Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
 With ``JEANSCV_SCREENSHOT=PATH`` the test also saves the page in use there
-(``docs/serve.png`` is made so: see ``bench/serve_screenshot.py``).
+(``docs/serve.jpg`` is made so: see ``bench/serve_screenshot.py``).
 """
 
 from __future__ import annotations
@@ -156,7 +156,9 @@ def test_drop_click_caption_download(server, tmp_path):
             assert page.inner_text("#cap-top").strip().lower() == "how would a dog"
             if os.environ.get("JEANSCV_SCREENSHOT"):
                 page.wait_for_timeout(300)
-                page.screenshot(path=os.environ["JEANSCV_SCREENSHOT"])
+                shot = os.environ["JEANSCV_SCREENSHOT"]
+                jpeg = shot.lower().endswith((".jpg", ".jpeg"))
+                page.screenshot(path=shot, type="jpeg" if jpeg else "png", quality=88 if jpeg else None)
             with page.expect_download(timeout=60_000) as download:
                 page.click("#dl-meme")
             saved = tmp_path / download.value.suggested_filename

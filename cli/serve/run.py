@@ -68,10 +68,8 @@ def run_server(
         )
     )
     try:
-        server.run()
+        server.run()  # uvicorn stops on Ctrl-C and SIGTERM; it exits with 1 when it cannot listen
     except KeyboardInterrupt:
         pass
-    if server.started or server.should_exit:
-        _say("stopped")
-        return 0
-    return 1
+    _say("stopped")
+    return 0

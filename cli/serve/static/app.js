@@ -298,6 +298,7 @@ function updateControls() {
   $("undo").disabled = !photo || state.history.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
   $("new-object").disabled = !photo || !state.objects.some((o) => o.positive.length > 0);
+  $("save").disabled = !state.objects.some((o) => o.positive.length > 0);
   const list = $("objects");
   list.replaceChildren();
   state.objects.forEach((object, index) => {
@@ -402,6 +403,7 @@ async function loadThumb(item, tile, thumb) {
       thumb.src = URL.createObjectURL(await response.blob());
     } else {
       const data = await response.json().catch(() => ({}));
+      thumb.hidden = true;
       const bad = document.createElement("span");
       bad.className = "bad";
       bad.textContent = data.error || `failed (${response.status})`;
