@@ -2,7 +2,7 @@
 bench/presets_report.py (both presets) and 30 random creatures of
 bench/unseen_shapes.py (default preset).
 
-    python bench/backend_agreement.py [--creatures 30] [--first-seed 1000]
+    python -m bench.backend_agreement [--creatures 30] [--first-seed 1000]
 
 Per fit: the same start chosen, the same posture, the same six rule checks, and how
 far apart the vertices and objectives end. Prints one row per fit and a summary.
@@ -11,18 +11,15 @@ far apart the vertices and objectives end. Prints one row per fit and a summary.
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from presets_report import load_shapes  # noqa: E402
-
-from jeanscv.checks import rule_report  # noqa: E402
-from jeanscv.fitter import fit, posture  # noqa: E402
-from jeanscv.garments import JEANS  # noqa: E402
-from jeanscv.synthetic import random_creature  # noqa: E402
+from bench.presets_report import load_shapes
+from jeanscv.checks import rule_report
+from jeanscv.fitter import fit
+from jeanscv.garments import JEANS
+from jeanscv.posture import posture
+from testkit.synthetic import random_creature
 
 
 def compare(silhouette: np.ndarray, preset: str) -> dict:

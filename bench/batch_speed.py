@@ -1,7 +1,7 @@
 """Batch speed of the command line, both fitting backends side by side in one run:
 photos per second and peak memory; one photo in a fresh process, and where its time goes.
 
-    python bench/batch_speed.py [--count 100] [--megapixels 12] [--jobs 2]
+    python -m bench.batch_speed [--count 100] [--megapixels 12] [--jobs 2]
 
 Makes a folder of ``count`` photos (real textures from scikit-image, an animal-like
 object on a ground, JPEG, about ``megapixels`` MP each), runs ``jeanscv FOLDER -o OUT
@@ -21,6 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parents[1]
+
 # The parent stays small: a child forked from a 2-GB parent would report the
 # parent's pages as its own peak memory, so photos are made in a child process.
 
@@ -30,7 +32,7 @@ def make_photo(path: Path, seed: int, megapixels: float) -> None:
     from PIL import Image
     from skimage import data
 
-    from jeanscv.synthetic import random_creature
+    from testkit.synthetic import random_creature
 
     rng = np.random.default_rng(seed)
     width = int(math.sqrt(megapixels * 1e6 * 4 / 3))
@@ -52,22 +54,22 @@ def make_photo(path: Path, seed: int, megapixels: float) -> None:
 def make_photos(folder: Path, seeds: range, megapixels: float) -> None:
     """Make the photos in a child process (see above)."""
     code = (
-        "import sys; sys.path.insert(0, sys.argv[1]); from batch_speed import make_photo; from pathlib import Path; "
-        "[make_photo(Path(sys.argv[2]) / f'photo_{s:03d}.jpg', s, float(sys.argv[5])) "
-        "for s in range(int(sys.argv[3]), int(sys.argv[4]))]"
+        "import sys; from bench.batch_speed import make_photo; from pathlib import Path; "
+        "[make_photo(Path(sys.argv[1]) / f'photo_{s:03d}.jpg', s, float(sys.argv[4])) "
+        "for s in range(int(sys.argv[2]), int(sys.argv[3]))]"
     )
     subprocess.run(
         [
             sys.executable,
             "-c",
             code,
-            str(Path(__file__).parent),
             str(folder),
             str(seeds.start),
             str(seeds.stop),
             str(megapixels),
         ],
         check=True,
+        cwd=ROOT,  # where ``bench`` and ``testkit`` are importable
     )
 
 

@@ -2,7 +2,7 @@
 100-iteration fit of the default preset (multi-start) and of the paper preset, and
 ms per iteration of a one-start fit.
 
-    python bench/fit_speed.py [--repeats 3] [--iterations 100]
+    python -m bench.fit_speed [--repeats 3] [--iterations 100]
 
 Uses ../shared/silhouettes/*.png when present, else the synthetic zoo. One thread
 (the fast path is single-threaded; torch is set to one thread, its fastest here), so
@@ -21,7 +21,7 @@ import numpy as np
 from PIL import Image
 
 from jeanscv.fitter import fit
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
 BACKENDS = ("fast", "torch")

@@ -1,6 +1,6 @@
 """Each built-in garment on the paper's person and on a dog (docs/garments.png).
 
-python bench/garments_figure.py [--out docs]
+python -m bench.garments_figure [--out docs]
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from jeanscv.checks import rule_report
 from jeanscv.compositing import render_silhouette_figure
 from jeanscv.fitter import fit
 from jeanscv.garments import GARMENTS
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
 

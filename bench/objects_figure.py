@@ -1,27 +1,24 @@
 """The README's picture of several objects: a photo, ``--objects all`` and ``--point``.
 
-    python bench/objects_figure.py [--out docs/objects.jpg]
+    python -m bench.objects_figure [--out docs/objects.jpg]
 
-Uses the two-object test photo (a person and a dog on grass, ``tests/synthetic_photos.py``)
+Uses the two-object test photo (a person and a dog on grass, ``testkit/synthetic_photos.py``)
 and prints, for each panel, the share of every garment's area that lies on its own object.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
+from jeanscv.api import apply_jeans
+from jeanscv.compositing import polygon_coverage_patch
+from testkit.synthetic_photos import two_objects
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from synthetic_photos import two_objects  # noqa: E402
-
-from jeanscv.api import apply_jeans  # noqa: E402
-from jeanscv.compositing import polygon_coverage_patch  # noqa: E402
 
 
 def shares(result, masks) -> list[str]:

@@ -2,7 +2,7 @@
 table of the four rules' checks and the jeans' posture, and write comparison pictures
 into docs/.
 
-    python bench/presets_report.py [--out docs] [--iterations 100]
+    python -m bench.presets_report [--out docs] [--iterations 100]
 
 Uses ../shared/silhouettes/*.png when present and the synthetic zoo always.
 """
@@ -18,8 +18,9 @@ from PIL import Image, ImageDraw
 
 from jeanscv.checks import rule_report
 from jeanscv.compositing import render_silhouette_figure
-from jeanscv.fitter import fit, posture_name, tilt_degrees
-from jeanscv.synthetic import silhouette_zoo
+from jeanscv.fitter import fit
+from jeanscv.posture import posture_name, tilt_degrees
+from testkit.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
 PAPER_SHAPES = ["person", "vitruvian", "dog", "horse", "tripod", "balldragon", "extra_0"]

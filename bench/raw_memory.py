@@ -1,6 +1,6 @@
 """Time and peak memory of the command line on a large camera RAW file.
 
-    python bench/raw_memory.py [--megapixels 24]
+    python -m bench.raw_memory [--megapixels 24]
 
 Makes a photo of about ``megapixels`` MP (an animal-like object on a real texture, as
 ``bench/batch_speed.py`` does), mosaics it into a 12-bit Bayer DNG (as the bundled
@@ -18,18 +18,18 @@ import sys
 import tempfile
 from pathlib import Path
 
-from batch_speed import run
+from bench.batch_speed import run
 
 ROOT = Path(__file__).resolve().parents[1]
 
 # Made in a child process, so this process stays small (see batch_speed.py).
 _MAKE = (
-    "import sys; from pathlib import Path; sys.path[:0] = [sys.argv[1], sys.argv[2]]\n"
+    "import sys; from pathlib import Path\n"
     "import numpy as np; from PIL import Image\n"
-    "from batch_speed import make_photo; from make_samples import write_dng\n"
-    "jpeg = Path(sys.argv[3]).with_suffix('.jpg'); make_photo(jpeg, 7, float(sys.argv[4]))\n"
+    "from bench.batch_speed import make_photo; from sample_images.make_samples import write_dng\n"
+    "jpeg = Path(sys.argv[1]).with_suffix('.jpg'); make_photo(jpeg, 7, float(sys.argv[2]))\n"
     "pixels = np.asarray(Image.open(jpeg).convert('RGB')); jpeg.unlink()\n"
-    "write_dng(pixels[: pixels.shape[0] // 2 * 2, : pixels.shape[1] // 2 * 2], Path(sys.argv[3]))\n"
+    "write_dng(pixels[: pixels.shape[0] // 2 * 2, : pixels.shape[1] // 2 * 2], Path(sys.argv[1]))\n"
 )
 
 
@@ -48,12 +48,11 @@ def main() -> None:
                 sys.executable,
                 "-c",
                 _MAKE,
-                str(Path(__file__).parent),
-                str(ROOT / "sample_images"),
                 str(dng),
                 str(args.megapixels),
             ],
             check=True,
+            cwd=ROOT,  # where ``bench`` and ``sample_images`` are importable
         )
         print(f"{dng.name}: {dng.stat().st_size / 1e6:.0f} MB DNG")
         print("| options | wall s | peak RSS (MB) | output size |")

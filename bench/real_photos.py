@@ -1,6 +1,6 @@
 """jeanscv on real photographs with reference masks (``../shared/real_photos``).
 
-    PYTHONPATH=. python bench/real_photos.py [--no-fit] [--only NAME,...] [--sheet PATH]
+    python -m bench.real_photos [--no-fit] [--only NAME,...] [--sheet PATH]
 
 Per photo and on average: the IoU of the subject mask with the reference mask, the
 method chosen (marked uncertain where auto's hypotheses disagreed), the segmentation
@@ -23,12 +23,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-# The photo set's loader is a test helper, not part of the package.
-sys.path.insert(0, str(ROOT / "tests"))
+from testkit.real_photo_set import REAL_PHOTOS, photo_paths, polygon_mask, reference_mask
+from testkit.synthetic_photos import iou
 
-from real_photo_set import REAL_PHOTOS, photo_paths, polygon_mask, reference_mask  # noqa: E402
-from synthetic_photos import iou  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+
 
 TILE_HEIGHT = 150
 ON_SUBJECT = 0.85  # the issue's bar: jeans with at least this share of their area on the subject
@@ -96,7 +95,7 @@ def main() -> None:
         sys.exit(f"no photos in {REAL_PHOTOS}: nothing to measure")
 
     import jeanscv
-    from jeanscv.fitter import tilt_degrees
+    from jeanscv.posture import tilt_degrees
 
     paths = photo_paths()
     if args.only:

@@ -1,6 +1,6 @@
 """Run jeanscv on the bundled samples and write the README's before/after pictures.
 
-    python bench/sample_gallery.py [--out docs]
+    python -m bench.sample_gallery [--out docs]
 
 Writes docs/samples/NAME.before.jpg and NAME.after.jpg (260 px tall), docs/hero.png,
 and prints the markdown table for the README.

@@ -1,7 +1,7 @@
-"""IoU of ``segment(image, "auto")`` on the synthetic photos of tests/synthetic_photos.py,
+"""IoU of ``segment(image, "auto")`` on the synthetic photos of testkit/synthetic_photos.py,
 as a markdown table (image, size, method chosen, IoU, ms) for the README.
 
-    PYTHONPATH=. python bench/segmentation_iou.py [--seeds 2023] [--working-size 640]
+    python -m bench.segmentation_iou [--seeds 2023] [--working-size 640]
 
 Seed 2023 is the set the tests assert on; other seeds redraw shapes, texture crops and
 noise for the same 16 cases (a robustness check). Cases whose paper silhouette is not
@@ -11,18 +11,12 @@ in ../shared/silhouettes are left out.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-# The photo generator is a test helper, not part of the package.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-
-from synthetic_photos import iou, photo_set  # noqa: E402
-
-from jeanscv.silhouette.photo import segment  # noqa: E402
+from jeanscv.silhouette.photo import segment
+from testkit.synthetic_photos import iou, photo_set
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """CPU seconds of automatic segmentation on 12-MP copies of the real photos, one thread.
 
-    PYTHONPATH=. python bench/segmentation_speed.py [--only NAME,...] [--width 4000] [--stages]
+    python -m bench.segmentation_speed [--only NAME,...] [--width 4000] [--stages]
 
 Each photo of ``../shared/real_photos`` is upscaled (bicubic) to ``--width`` pixels
 wide (4000: 9-16 MP, 12 MP for a 4:3 photo) and segmented by
@@ -25,10 +25,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))  # the photo set's loader is a test helper
+from testkit.real_photo_set import REAL_PHOTOS, photo_paths
 
-from real_photo_set import REAL_PHOTOS, photo_paths  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+
 
 TARGET_SECONDS = 0.6
 # (label, module, attribute path): functions whose own-thread CPU time is one stage.

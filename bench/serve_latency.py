@@ -1,7 +1,7 @@
 """``jeanscv serve`` latency through its HTTP interface: page load, drop to jeans, click to jeans.
 
-    python bench/serve_latency.py                 # 4 shared real photos, upscaled to 12 MP
-    python bench/serve_latency.py --photos 8 --clicks 5 --think 1.0
+    python -m bench.serve_latency                 # 4 shared real photos, upscaled to 12 MP
+    python -m bench.serve_latency --photos 8 --clicks 5 --think 1.0
 
 A fresh server (its own process, 127.0.0.1, the fit kernels already compiled on this
 installation) is started; then:
@@ -28,9 +28,11 @@ import time
 
 import cv2
 import numpy as np
-from clicks import SHARED, next_click, photo_pairs, upscale
 from PIL import Image
-from serve_client import Server
+
+from bench.clicks import SHARED, photo_pairs, upscale
+from bench.serve_client import Server
+from jeanscv.silhouette.interactive import simulated_click
 
 
 def outline_mask(objects: list, size: tuple[int, int]) -> np.ndarray:
@@ -93,7 +95,7 @@ def main() -> None:
             positive, negative, mine = [], [], []
             predicted = None
             for _ in range(args.clicks):
-                sign, point = next_click(reference, predicted)
+                sign, point = simulated_click(reference, predicted)
                 (positive if sign else negative).append([round(point[0], 1), round(point[1], 1)])
                 began = time.perf_counter()
                 status, _, body = server.render(answer["photo"], [{"positive": positive, "negative": negative}])

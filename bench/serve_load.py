@@ -1,7 +1,7 @@
 """``jeanscv serve`` under load: 200 requests over loopback, 8 at a time.
 
-    python bench/serve_load.py
-    python bench/serve_load.py --requests 400 --concurrency 16 --seed 2
+    python -m bench.serve_load
+    python -m bench.serve_load --requests 400 --concurrency 16 --seed 2
 
 A fresh server (its own process on 127.0.0.1, default options but a 20 MB upload cap)
 gets a shuffled mix: uploads of good photos (the shared real photos at their own size,
@@ -31,9 +31,10 @@ import time
 import zlib
 
 import numpy as np
-from clicks import SHARED, photo_pairs, upscale
 from PIL import Image
-from serve_client import Server
+
+from bench.clicks import SHARED, photo_pairs, upscale
+from bench.serve_client import Server
 
 MEMORY_LIMIT = 1.5e9
 RETRIES = 30

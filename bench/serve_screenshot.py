@@ -1,7 +1,7 @@
 """Regenerate ``docs/serve.jpg``: the page in use, as the browser test leaves it
 (a photo dropped, the dog clicked, a caption typed).
 
-    python bench/serve_screenshot.py [OUT.jpg|OUT.png]
+    python -m bench.serve_screenshot [OUT.jpg|OUT.png]
 
 Runs ``tests/test_serve_browser.py`` with ``JEANSCV_SCREENSHOT`` set (Debian's Chromium,
 driven by Playwright, on a server bound to 127.0.0.1).

@@ -1,7 +1,7 @@
 """The default preset on random creatures nobody drew by hand: how many pass all six
 checks of the paper's four rules, which checks fail, and how many jeans hang upright.
 
-    python bench/unseen_shapes.py [--count 40] [--first-seed 1000]
+    python -m bench.unseen_shapes [--count 40] [--first-seed 1000]
 """
 
 from __future__ import annotations
@@ -10,8 +10,9 @@ import argparse
 from collections import Counter
 
 from jeanscv.checks import rule_report
-from jeanscv.fitter import fit, posture_name, tilt_degrees
-from jeanscv.synthetic import random_creature
+from jeanscv.fitter import fit
+from jeanscv.posture import posture_name, tilt_degrees
+from testkit.synthetic import random_creature
 
 
 def main() -> None:

@@ -1,16 +1,16 @@
 """Do the jeans hang upright? The default preset with ``posture="upright"`` against
 ``posture="any"`` (the earlier selection), back to back in one run.
 
-    PYTHONPATH=. python bench/upright.py [--only photos,synthetic,silhouettes,shapes,paper] [--overlays DIR]
+    python -m bench.upright [--only photos,synthetic,silhouettes,shapes,paper] [--overlays DIR]
 
 Counts, per posture, the fits that are upright (tilt <= 30 degrees, see
-``jeanscv.fitter.tilt_degrees``) and pass all six rule checks on:
+``jeanscv.posture.tilt_degrees``) and pass all six rule checks on:
 
 - the real photos of ``../shared/real_photos`` through the real pipeline (decode,
   segmentation, framing, fit; each photo segmented once, fitted both ways);
-- the test suite's synthetic photos (``tests/synthetic_photos.py``: procedural and paper
+- the test suite's synthetic photos (``testkit/synthetic_photos.py``: procedural and paper
   shapes in real textures on real backgrounds, seeds 2023 and 7), the same way;
-- 16 silhouettes: the paper's 7 and the 9 of ``tests/upright_shapes.py``;
+- 16 silhouettes: the paper's 7 and the 9 of ``testkit/upright_shapes.py``;
 - the 60 shapes of ``bench/presets_report.py`` and ``bench/unseen_shapes.py`` (all six
   checks only);
 
@@ -21,7 +21,6 @@ total fit CPU time of each posture. ``--overlays DIR`` writes the photo fits as 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
@@ -29,21 +28,19 @@ import numpy as np
 import torch
 from PIL import Image
 
+from bench.presets_report import PAPER_SHAPES, SHARED, load_shapes
+from jeanscv.api import draw_figure
+from jeanscv.checks import rule_report
+from jeanscv.fitter import fit
+from jeanscv.posture import posture_name, tilt_degrees
+from jeanscv.render import polygon_coverage
+from testkit.real_photo_set import photo_paths
+from testkit.synthetic import random_creature
+from testkit.synthetic_photos import photo_set
+from testkit.upright_shapes import upright_shapes
+
 ROOT = Path(__file__).resolve().parents[1]
-# Test helpers (the photo set, the upright shapes), not part of the package.
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT / "bench"))
 
-from presets_report import PAPER_SHAPES, SHARED, load_shapes  # noqa: E402
-from real_photo_set import photo_paths  # noqa: E402
-from synthetic_photos import photo_set  # noqa: E402
-from upright_shapes import upright_shapes  # noqa: E402
-
-from jeanscv.api import draw_figure  # noqa: E402
-from jeanscv.checks import rule_report  # noqa: E402
-from jeanscv.fitter import fit, posture_name, tilt_degrees  # noqa: E402
-from jeanscv.render import polygon_coverage  # noqa: E402
-from jeanscv.synthetic import random_creature  # noqa: E402
 
 POSTURES = ("any", "upright")
 UPRIGHT = 30.0  # the issue's bar, degrees
@@ -118,7 +115,7 @@ def real_photos():
 
 
 def synthetic_photos(seeds=(2023, 7)):
-    """``(name, RGB pixels)`` of the test suite's textured photos (``tests/synthetic_photos.py``)."""
+    """``(name, RGB pixels)`` of the test suite's textured photos (``testkit/synthetic_photos.py``)."""
     for seed in seeds:
         for case in photo_set(seed):
             yield f"{case.name}:{seed}", case.image

@@ -16,6 +16,8 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from jeanscv.io.write import on_white
+
 GIF_MAX_SIDE = 320
 JEANS_BLUE = (0, 0, 255)
 _FRAME_MS = 80
@@ -86,15 +88,6 @@ def _resize_float(plane: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return np.asarray(Image.fromarray(plane.astype(np.float32), "F").resize(size, Image.Resampling.BOX))
 
 
-def on_white(image: np.ndarray) -> np.ndarray:
-    """RGB(A) -> RGB, transparent parts over white (for JPEG and GIF frames)."""
-    if image.ndim == 3 and image.shape[2] == 4:
-        alpha = image[..., 3:].astype(np.float32) / 255.0
-        rgb = image[..., :3].astype(np.float32) * alpha + 255.0 * (1.0 - alpha)
-        return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
-    return image
-
-
 def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE) -> bytes:
     """An animated GIF of the fit: the jeans at evenly spaced iterations, in the paper's style.
 
@@ -102,7 +95,7 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
     the bottom shows the progress through the iterations; the last frame is held.
     Needs ``result.fit.trajectory``: ``(iterations + 1, N, 2)`` canvas pixels.
     """
-    from jeanscv.api import draw_figure, draw_garment
+    from jeanscv.figures import draw_figure, draw_garment
 
     fit, silhouette = result.fit, result.silhouette
     trajectory = np.asarray(fit.trajectory, dtype=np.float64)

@@ -1,7 +1,8 @@
 """The ``jeanscv`` command: put jeans on every silhouette and photo you name.
 
-Only click is imported at module level: ``jeanscv --help`` and ``--version`` must not
-load torch, kornia, OpenCV or rawpy. Everything else is imported inside the command.
+Only click and the lists of allowed values (:mod:`jeanscv.options`, :mod:`jeanscv.device`)
+are imported at module level: ``jeanscv --help`` and ``--version`` must not load numpy,
+torch, kornia, OpenCV or rawpy. Everything else is imported inside the command.
 """
 
 from __future__ import annotations
@@ -15,6 +16,11 @@ from pathlib import Path
 import click
 
 from jeanscv import __version__
+from jeanscv.device import BACKENDS, DEVICES
+from jeanscv.options import KINDS, OBJECTS, POSTURES, STYLES, JeansOptions
+
+#: The library's defaults, which the command's options show and use (``--device`` is ``auto`` here).
+DEFAULTS = JeansOptions()
 
 EPILOG = """\b
 Examples:
@@ -26,7 +32,9 @@ Examples:
   jeanscv horse.png --json --svg --gif  sidecars: report, vector overlay, animation
   jeanscv cat.jpg --mask cat_mask.png   your own mask instead of the segmentation
   jeanscv pets.jpg --objects all        jeans on every separate object
-  jeanscv pets.jpg --point 420,310      jeans on the object under that pixel
+  jeanscv pets.jpg --point 420,310      jeans on the object under that pixel (a click)
+  jeanscv pets.jpg --point 420,310 --background-point 90,40   ...and not on that
+  jeanscv pets.jpg --clicks pets.clicks.json                   replay saved clicks
   jeanscv car.jpg --posture any         jeans in any posture, lying ones too
   jeanscv serve [FOLDER]                a local web page: drop a photo, click the subject
                                         (see 'jeanscv serve --help')
@@ -34,6 +42,7 @@ Examples:
 \b
 Outputs are written next to each input as NAME.jeans.EXT (or under -o DIR).
 Existing outputs are skipped unless --overwrite, so an interrupted run resumes.
+A photo with clicks saved beside it (NAME.clicks.json, by jeanscv serve) uses them.
 Exit status: 0 all done, 1 some input failed, 2 usage error, 130/143 interrupted.
 """
 
@@ -118,7 +127,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option(
     "--gif-frames",
     type=click.IntRange(2, 500),
-    default=50,
+    default=DEFAULTS.gif_frames,
     show_default=True,
     help="Most frames in the --gif animation.",
 )
@@ -127,32 +136,39 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write a JSON-lines report, one line per input, to this file.",
 )
-@click.option("--preset", default="default", show_default=True, help="Fitting preset (see --list-presets).")
+@click.option("--preset", default=DEFAULTS.preset, show_default=True, help="Fitting preset (see --list-presets).")
 @click.option(
     "--posture",
-    type=click.Choice(["upright", "any"]),
-    default="upright",
+    type=click.Choice(POSTURES),
+    default=DEFAULTS.posture,
     show_default=True,
     help="upright: the garment hangs down unless no upright fit passes the rule checks; "
     "any: every posture competes (the algorithm's wilder answers).",
 )
 @click.option(
-    "--garment", default="jeans", show_default=True, help="Garment: a name (see --list-garments) or a .toml file."
+    "--garment",
+    default=DEFAULTS.garment,
+    show_default=True,
+    help="Garment: a name (see --list-garments) or a .toml file.",
 )
-@click.option("--iterations", type=click.IntRange(0), default=100, show_default=True, help="Optimiser steps.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed (same seed, same result).")
+@click.option(
+    "--iterations", type=click.IntRange(0), default=DEFAULTS.iterations, show_default=True, help="Optimiser steps."
+)
+@click.option(
+    "--seed", type=int, default=DEFAULTS.seed, show_default=True, help="Random seed (same seed, same result)."
+)
 @click.option("--starts", type=click.IntRange(1), help="Initial placements tried (default: the preset's).")
 @click.option(
     "--kind",
-    type=click.Choice(["auto", "silhouette", "photo"]),
-    default="auto",
+    type=click.Choice(KINDS),
+    default=DEFAULTS.kind,
     show_default=True,
     help="Treat inputs as silhouette drawings or photos.",
 )
 @click.option(
     "--silhouette",
     "silhouette_method",
-    default="auto",
+    default=DEFAULTS.silhouette_method,
     show_default=True,
     callback=_check_silhouette,
     help="How to cut the object out of a photo: auto, alpha, threshold, grabcut, or a plugin's name.",
@@ -162,8 +178,8 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")
 @click.option(
     "--objects",
-    type=click.Choice(["one", "all"]),
-    default="one",
+    type=click.Choice(OBJECTS),
+    default=DEFAULTS.objects,
     show_default=True,
     help="Jeans on the main subject only, or on every separate object of a photo.",
 )
@@ -173,23 +189,39 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     multiple=True,
     callback=_parse_points,
     metavar="X,Y",
-    help="Put jeans on the object under this pixel of the photo, like a click (repeatable; one input).",
+    help="A click on the object that should wear the jeans (pixels of the photo; repeatable: "
+    "more clicks refine the same object; one input).",
+)
+@click.option(
+    "--background-point",
+    "background_points",
+    multiple=True,
+    callback=_parse_points,
+    metavar="X,Y",
+    help="A click on something that is not that object (repeatable; with --point).",
+)
+@click.option(
+    "--clicks",
+    "clicks",
+    type=click.Path(dir_okay=False, path_type=Path),
+    metavar="FILE.json",
+    help="Replay a clicks file (one or several objects; the web page saves them; one input).",
 )
 @click.option(
     "--style",
-    type=click.Choice(["denim", "flat"]),
-    default="denim",
+    type=click.Choice(STYLES),
+    default=DEFAULTS.style,
     show_default=True,
     help="denim texture, or the paper's flat blue.",
 )
-@click.option("--clip/--no-clip", default=True, show_default=True, help="Paint jeans only on the object.")
+@click.option("--clip/--no-clip", default=DEFAULTS.clip, show_default=True, help="Paint jeans only on the object.")
 @click.option("--top", metavar="TEXT", help="Meme caption along the top.")
 @click.option("--bottom", metavar="TEXT", help="Meme caption along the bottom.")
 @click.option("--side-by-side", is_flag=True, help="Output the original and the result side by side.")
 @click.option(
     "--max-pixels",
     type=click.IntRange(1),
-    default=100_000_000,
+    default=DEFAULTS.max_pixels,
     show_default=True,
     help="Refuse images larger than this.",
 )
@@ -201,12 +233,10 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     expose_value=False,
     help="Accepted for compatibility: RAW files decode at full size by default.",
 )
-@click.option(
-    "--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True, help="Where to fit."
-)
+@click.option("--device", type=click.Choice(DEVICES), default="auto", show_default=True, help="Where to fit.")
 @click.option(
     "--backend",
-    type=click.Choice(["auto", "fast", "torch"]),
+    type=click.Choice(("auto", *BACKENDS)),
     default="auto",
     show_default=True,
     help="Fitting code on the CPU: fast (compiled kernel) or torch (the reference); "
@@ -266,54 +296,26 @@ def _main(
     want_json,
     want_svg,
     want_gif,
-    gif_frames,
     report,
-    preset,
-    posture,
-    garment,
-    iterations,
-    seed,
-    starts,
-    kind,
-    silhouette_method,
-    threshold,
-    mask,
-    rect,
-    objects,
-    points,
-    style,
-    clip,
-    top,
-    bottom,
-    side_by_side,
-    max_pixels,
-    raw_half_size,
     device,
     backend,
     jobs,
     quiet,
     verbose,
+    **values,
 ) -> int:
+    """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
-    from jeanscv.api import resolve_device
+    from jeanscv._fast import kernels_cached
+    from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
-    from jeanscv.garments import get_garment
-    from jeanscv.presets import get_preset
+    from jeanscv.runner import one_line
 
     from .discover import collect
     from .progress import Progress
-    from .worker import Options, Outcome, one_line, wanted_outputs
 
-    for lookup, value, hint in ((get_preset, preset, "'--preset'"), (get_garment, garment, "'--garment'")):
-        try:
-            lookup(value)
-        except JeansError as exc:
-            raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
-
-    from jeanscv._fast import backend as resolve_backend
-    from jeanscv._fast import kernels_cached
-
+    _check_names(ctx, values)
     try:
         device = resolve_device(device)
         backend = resolve_backend(None if backend == "auto" else backend, device)
@@ -323,92 +325,81 @@ def _main(
 
     extras = tuple(name for name, wanted in (("json", want_json), ("svg", want_svg), ("gif", want_gif)) if wanted)
     found = collect(list(paths), recursive, output_dir, fmt, extras)
-    if mask is not None and len(found.jobs) + len(found.problems) != 1:
+    if values["mask"] is not None and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--mask needs exactly one input image")
-    if points and len(found.jobs) + len(found.problems) != 1:
+    if values["points"] and len(found.jobs) + len(found.problems) != 1:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
-    options = Options(
-        preset=preset,
-        posture=posture,
-        garment=garment,
-        iterations=iterations,
-        seed=seed,
-        starts=starts,
-        kind=kind,
-        silhouette=silhouette_method,
-        threshold=threshold,
-        mask=mask,
-        rect=rect,
-        objects=objects,
-        points=points,
-        style=style,
-        clip=clip,
-        max_pixels=max_pixels,
-        raw_half_size=raw_half_size,
-        device=device,
-        backend=backend,
-        overwrite=overwrite,
-        top=top,
-        bottom=bottom,
-        side_by_side=side_by_side,
-        gif_frames=gif_frames,
-    )
+    if values["background_points"] and not values["points"]:
+        raise _usage("--background-point needs a --point on the object too")
+    if values["clicks"] is not None and len(found.jobs) + len(found.problems) != 1:
+        raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
+    options = JeansOptions(**values, device=device, backend=backend)
 
     progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
     noun = "input" if len(found.jobs) == 1 else "inputs"
     workers, why = _workers(jobs, len(found.jobs))
     progress.info(
         f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
-        f"({why}), device {device} ({backend}), preset {preset}, {iterations} iterations"
+        f"({why}), device {device} ({backend}), preset {options.preset}, {options.iterations} iterations"
     )
     if backend == "fast" and kernels_cached() is False:
         progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
-    records: list[dict] = []
+    records = _unprocessed(found, progress)
+    pending, outcomes = _split_finished(found.jobs, options, overwrite, progress)
+    return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
+
+
+def _check_names(ctx: click.Context, values: dict) -> None:
+    """``--preset`` and ``--garment`` name something that exists, else a usage error."""
+    from jeanscv.errors import JeansError
+    from jeanscv.plugins import get_garment
+    from jeanscv.presets import get_preset
+    from jeanscv.runner import one_line
+
+    for lookup, value, hint in (
+        (get_preset, values["preset"], "'--preset'"),
+        (get_garment, values["garment"], "'--garment'"),
+    ):
+        try:
+            lookup(value)
+        except JeansError as exc:
+            raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
+
+
+def _record(status: str, name: str, error: str = "", reason: str | None = None) -> dict:
+    """A ``--report`` line of an input that was never processed."""
+    record = {"status": status, "input": name, "output": "", "written": [], "error": error, "seconds": 0.0}
+    if reason is not None:
+        record["reason"] = reason
+    return record
+
+
+def _unprocessed(found, progress) -> list[dict]:
+    """Report what the inputs held besides jobs: problems (failed), unsupported files
+    and jeanscv's own outputs (skipped)."""
+    records = []
     for problem in found.problems:
         progress.error(problem.display, problem.reason)
         progress.counts["failed"] += 1
-        records.append(
-            {
-                "status": "failed",
-                "input": problem.display,
-                "output": "",
-                "written": [],
-                "error": problem.reason,
-                "seconds": 0.0,
-            }
-        )
+        records.append(_record("failed", problem.display, error=problem.reason))
     progress.skip_quietly(len(found.ignored))
-    for name in found.ignored:
-        records.append(
-            {
-                "status": "skipped",
-                "input": name,
-                "output": "",
-                "written": [],
-                "error": "",
-                "reason": "not a supported image type",
-                "seconds": 0.0,
-            }
-        )
+    records += [_record("skipped", name, reason="not a supported image type") for name in found.ignored]
     for name in found.own_outputs:
         progress.info(f"{name}: skipped (a jeanscv output, not an input)")
         progress.counts["skipped"] += 1
-        records.append(
-            {
-                "status": "skipped",
-                "input": name,
-                "output": "",
-                "written": [],
-                "error": "",
-                "reason": "a jeanscv output",
-                "seconds": 0.0,
-            }
-        )
+        records.append(_record("skipped", name, reason="a jeanscv output"))
+    return records
 
-    outcomes: dict[int, Outcome] = {}
+
+def _split_finished(jobs, options, overwrite: bool, progress) -> tuple[list, dict]:
+    """``(pending jobs, outcomes)``: jobs whose outputs all exist (and are newer than the
+    clicks saved beside the photo) are skipped (outcomes) unless ``overwrite``."""
+    from .worker import Outcome, wanted_outputs
+
+    outcomes = {}
     pending = []
-    for job in found.jobs:
-        if wanted_outputs(job, overwrite):
+    for job in jobs:
+        if wanted_outputs(job, options, overwrite):
             pending.append(job)
         else:
             outcome = Outcome(
@@ -420,14 +411,19 @@ def _main(
             )
             outcomes[job.index] = outcome
             progress.finish(outcome)
+    return pending, outcomes
 
+
+def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcomes, records, report) -> int:
+    """Process ``pending`` (in ``workers`` processes when several), summarise, write the
+    ``--report``; the exit status."""
     code = 0
     previous = _install_sigterm()
     try:
         if workers > 1 and len(pending) > 1:
-            _run_parallel(pending, options, min(workers, len(pending)), progress, outcomes)
+            _run_parallel(pending, options, overwrite, min(workers, len(pending)), progress, outcomes)
         else:
-            _run_serial(pending, options, progress, outcomes)
+            _run_serial(pending, options, overwrite, progress, outcomes)
     except KeyboardInterrupt:
         code = 130
     except _Terminated:
@@ -498,23 +494,23 @@ def _restore_sigterm(previous) -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run_serial(pending, options, progress, outcomes) -> None:
+def _run_serial(pending, options, overwrite: bool, progress, outcomes) -> None:
     from .worker import process, reuse_freed_memory
 
     reuse_freed_memory()
     for job in pending:
         progress.start(job.display)
-        outcome = process(job, options)
+        outcome = process(job, options, overwrite)
         outcomes[job.index] = outcome
         progress.finish(outcome)
 
 
-def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
+def _run_parallel(pending, options, overwrite: bool, workers: int, progress, outcomes) -> None:
     """Process ``pending`` in ``workers`` spawned processes, each with its share of the cores."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from jeanscv.__main__ import worker_init
+    from jeanscv._command import worker_init
 
     from .worker import Outcome, process_in_worker
 
@@ -527,7 +523,7 @@ def _run_parallel(pending, options, workers: int, progress, outcomes) -> None:
     )
     clean = False
     try:
-        futures = {pool.submit(process_in_worker, job, options): job for job in pending}
+        futures = {pool.submit(process_in_worker, job, options, overwrite): job for job in pending}
         progress.start(f"{workers} workers")
         for future in as_completed(futures):
             job = futures[future]

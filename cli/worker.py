@@ -6,44 +6,16 @@ picklable and the heavy modules are imported on first use.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from jeanscv.options import JeansOptions
+from jeanscv.runner import encode_picture, failure_reason, report_text
+
 from .discover import Job
-
-
-@dataclass(frozen=True)
-class Options:
-    """The per-file settings from the command line (device already resolved)."""
-
-    preset: str = "default"
-    posture: str = "upright"
-    garment: str = "jeans"
-    iterations: int = 100
-    seed: int = 0
-    starts: int | None = None
-    kind: str = "auto"
-    silhouette: str = "auto"
-    threshold: float | None = None
-    mask: str | None = None
-    rect: tuple[int, int, int, int] | None = None
-    objects: str = "one"
-    points: tuple[tuple[float, float], ...] = ()
-    style: str = "denim"
-    clip: bool = True
-    max_pixels: int = 100_000_000
-    raw_half_size: bool = False
-    device: str = "cpu"
-    backend: str | None = None  # resolved by the command: fast or torch
-    overwrite: bool = False
-    top: str | None = None
-    bottom: str | None = None
-    side_by_side: bool = False
-    gif_frames: int = 50
 
 
 @dataclass
@@ -80,43 +52,36 @@ class Terminated(BaseException):
     """Raised by the SIGTERM handler: unwinds like Ctrl-C, so temporary files are removed."""
 
 
-def one_line(text: str) -> str:
-    """Collapse whitespace (newlines included) so a message fits ``jeanscv: FILE: reason``."""
-    return " ".join(str(text).split())
+def saved_clicks(job: Job, options: JeansOptions) -> Path | None:
+    """The clicks saved beside a photo (``NAME.clicks.json``, by ``jeanscv serve``), which
+    it uses unless ``--point``, ``--clicks`` or ``--mask`` say what the subject is."""
+    from jeanscv.clicks import sidecar_path
+
+    if options.points or options.clicks is not None or options.mask is not None:
+        return None
+    sidecar = sidecar_path(job.path)
+    return sidecar if sidecar.is_file() else None
 
 
-def failure_reason(exc: BaseException) -> str:
-    """The user-facing reason for an exception raised while processing a file."""
-    from jeanscv.errors import JeansError
-
-    if isinstance(exc, JeansError):
-        return one_line(exc) or "failed"
-    if isinstance(exc, MemoryError):
-        return "out of memory"
-    detail = one_line(exc)
-    return f"unexpected error ({type(exc).__name__}{': ' + detail if detail else ''})"
-
-
-def wanted_outputs(job: Job, overwrite: bool) -> dict[str, Path]:
-    """The outputs to write: all with ``overwrite``, else those that do not exist yet."""
-    return {k: p for k, p in job.outputs.items() if overwrite or not p.exists()}
-
-
-def _encode(path: Path, pixels, result):
-    """Bytes of the picture for ``path``: its extension picks the format; photos keep
-    their EXIF (orientation removed) and colour profile."""
-    from jeanscv.io.write import encode_image, format_for_path
-
-    from .extras import on_white
-
-    fmt = format_for_path(path)
-    if fmt == "JPEG":
-        pixels = on_white(pixels)  # JPEG has no alpha: show transparency as white, not as raw colour
-    meta = {}
-    source = result.source
-    if result.kind == "photo" and source is not None:
-        meta = {"exif": source.exif, "icc_profile": source.icc_profile}
-    return encode_image(pixels, fmt, quality=95, **meta)
+def wanted_outputs(job: Job, options: JeansOptions, overwrite: bool) -> dict[str, Path]:
+    """The outputs to write: all with ``overwrite``, else those that do not exist yet or
+    are older than the clicks saved beside the photo (the subject was fixed since)."""
+    if overwrite:
+        return dict(job.outputs)
+    saved = saved_clicks(job, options)
+    try:
+        clicked = saved.stat().st_mtime if saved is not None else None
+    except OSError:
+        clicked = None
+    wanted = {}
+    for kind, path in job.outputs.items():
+        try:
+            done = path.stat().st_mtime
+        except OSError:
+            done = None
+        if done is None or (clicked is not None and done < clicked):
+            wanted[kind] = path
+    return wanted
 
 
 def _ensure_folder(folder: Path) -> None:
@@ -128,14 +93,14 @@ def _ensure_folder(folder: Path) -> None:
         raise JeansError(f"cannot create output folder {folder}: {(exc.strerror or str(exc)).lower()}") from None
 
 
-def picture(result, options: Options):
+def picture(result, options: JeansOptions):
     """The main output picture: the fit, captioned, optionally beside the original."""
     from .extras import add_captions, side_by_side
 
     image = add_captions(result.image, options.top, options.bottom)
     if options.side_by_side:
         if result.kind == "silhouette":
-            from jeanscv.api import figure
+            from jeanscv.figures import figure
 
             original = figure(result.silhouette)
         else:
@@ -144,43 +109,18 @@ def picture(result, options: Options):
     return image
 
 
-def report_json(result, job: Job) -> str:
-    """The ``--json`` sidecar text: sorted keys, indent 2, newline at the end."""
-    report = result.report(job.display, str(job.outputs["image"]))
-    return json.dumps(report, sort_keys=True, indent=2) + "\n"
-
-
-def _run(job: Job, options: Options, outcome: Outcome) -> None:
-    from jeanscv import api
-    from jeanscv.api import load_mask, silhouette_contours
+def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> None:
+    from jeanscv import pipeline
     from jeanscv.io.write import atomic_write_bytes
+    from jeanscv.silhouettes import silhouette_contours
 
     from .extras import optimisation_gif, svg_document
 
-    targets = wanted_outputs(job, options.overwrite)
-    mask = load_mask(options.mask, options.max_pixels) if options.mask else None
-    result = api.apply_jeans(
-        job.path,
-        garment=options.garment,
-        preset=options.preset,
-        iterations=options.iterations,
-        seed=options.seed,
-        device=options.device,
-        starts=options.starts,
-        kind=options.kind,
-        silhouette_method=options.silhouette,
-        threshold=options.threshold,
-        rect=options.rect,
-        mask=mask,
-        style=options.style,
-        clip=options.clip,
-        max_pixels=options.max_pixels,
-        raw_half_size=options.raw_half_size,
-        objects=options.objects,
-        points=list(options.points),
-        posture=options.posture,
-        backend=options.backend,
-    )
+    targets = wanted_outputs(job, options, overwrite)
+    saved = saved_clicks(job, options)
+    if saved is not None:
+        options = options.replace(clicks=saved)
+    result = pipeline.apply_jeans(job.path, options)
     fit = result.fit
     outcome.info = {
         "kind": result.kind,
@@ -194,7 +134,7 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
         "objects": [_object_info(obj) for obj in result.objects],
     }
     subject = result.silhouette.details
-    if subject.get("uncertain") and not options.points:
+    if subject.get("uncertain") and not options.points and options.clicks is None:
         outcome.info["note"] = (
             f"unsure which thing is the subject (the segmentation's hypotheses overlap by {subject['consensus']:.2f} "
             "on average); if the jeans missed it, click it with --point X,Y"
@@ -202,9 +142,9 @@ def _run(job: Job, options: Options, outcome: Outcome) -> None:
     # Everything is encoded before the first write, so a failure leaves no outputs.
     data: dict[str, bytes] = {}
     if "image" in targets:
-        data["image"] = _encode(targets["image"], picture(result, options), result)
+        data["image"] = encode_picture(targets["image"], picture(result, options), result)
     if "json" in targets:
-        data["json"] = report_json(result, job).encode("utf-8")
+        data["json"] = report_text(result, job.display, str(job.outputs["image"])).encode("utf-8")
     if "svg" in targets:
         polygons = [obj.silhouette.framing.to_image(obj.fit.vertices) for obj in result.objects]
         contours = [c for obj in result.objects for c in silhouette_contours(obj.silhouette)]
@@ -239,7 +179,7 @@ def _object_info(obj) -> dict:
 _BUSY = False
 
 
-def process(job: Job, options: Options) -> Outcome:
+def process(job: Job, options: JeansOptions, overwrite: bool = False) -> Outcome:
     """Process one job; never raises for a bad input (the outcome says ``failed``).
 
     KeyboardInterrupt and :class:`Terminated` propagate, after the atomic writers
@@ -250,7 +190,7 @@ def process(job: Job, options: Options) -> Outcome:
     outcome = Outcome(job.index, job.display, "ok", output=str(job.outputs["image"]))
     _BUSY = True
     try:
-        _run(job, options, outcome)
+        _run(job, options, overwrite, outcome)
     except Exception as exc:  # noqa: BLE001 - every failure becomes one line for this file
         from jeanscv.errors import OptionError
 
@@ -312,9 +252,9 @@ def init_worker(threads: int) -> None:
         sys.modules["torch"].set_num_threads(max(1, threads))
 
 
-def process_in_worker(job: Job, options: Options) -> Outcome:
+def process_in_worker(job: Job, options: JeansOptions, overwrite: bool = False) -> Outcome:
     """:func:`process` for a worker process: a SIGTERM mid-file reports nothing and exits."""
     try:
-        return process(job, options)
+        return process(job, options, overwrite)
     except Terminated:
         os._exit(128 + signal.SIGTERM)

@@ -17,25 +17,26 @@ from typing import Any
 __version__ = "0.1.0"
 
 _LAZY = {
-    "load_image": "jeanscv.api",
-    "extract_silhouette": "jeanscv.api",
-    "extract_silhouettes": "jeanscv.api",
-    "fit": "jeanscv.api",
-    "composite": "jeanscv.api",
-    "apply_jeans": "jeanscv.api",
-    "read_svg": "jeanscv.api",
-    "Silhouette": "jeanscv.api",
-    "JeansResult": "jeanscv.api",
+    "load_image": "jeanscv.pipeline",
+    "extract_silhouette": "jeanscv.extraction",
+    "extract_silhouettes": "jeanscv.extraction",
+    "fit": "jeanscv.pipeline",
+    "composite": "jeanscv.figures",
+    "apply_jeans": "jeanscv.pipeline",
+    "read_svg": "jeanscv.silhouettes",
+    "Silhouette": "jeanscv.silhouettes",
+    "JeansResult": "jeanscv.report",
+    "JeansOptions": "jeanscv.options",
     "JeansError": "jeanscv.errors",
     "JalgorithmLoss": "jeanscv.loss",
     "jalgorithm_terms": "jeanscv.loss",
     "PRESETS": "jeanscv.presets",
     "GARMENTS": "jeanscv.garments",
-    "get_garment": "jeanscv.garments",
-    "load_garment": "jeanscv.garments",
+    "get_garment": "jeanscv.plugins",
+    "load_garment": "jeanscv.plugins",
     "available_garments": "jeanscv.plugins",
     "run_on_dask": "jeanscv.distributed",
-    "load_mask": "jeanscv.api",
+    "load_mask": "jeanscv.silhouettes",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -106,6 +106,19 @@ class Clicks:
                     which = f"object {index + 1}: " if len(self.objects) > 1 else ""
                     raise JeansError(f"{which}click ({x:g}, {y:g}) is outside the {width}x{height} image")
 
+    def scaled(self, size: tuple[int, int]) -> Clicks:
+        """The clicks in pixels of a copy of the image at ``size`` = (width, height)
+        (a RAW file decoded at half size); needs ``image_size`` or raises."""
+        if self.image_size is None:
+            raise JeansError("the clicks' image size is unknown")
+        sx, sy = size[0] / self.image_size[0], size[1] / self.image_size[1]
+
+        def scale(points):
+            return tuple((x * sx, y * sy) for x, y in points)
+
+        objects = tuple(ObjectClicks(scale(o.positive), scale(o.negative)) for o in self.objects)
+        return Clicks(objects, tuple(size), self.extra)
+
     def to_json(self) -> dict:
         """The clicks file's JSON object."""
         data: dict = {"format": FORMAT, "version": VERSION}

@@ -22,10 +22,10 @@ from .denim import denim_windows, render_denim, row_windows
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .objectives import polygon_coverage
+from .options import STYLES
 
 #: The paper's jeans colour (RGB), used by ``style="flat"`` and the figures.
 FLAT_BLUE = (0, 0, 255)
-STYLES = ("denim", "flat")
 
 # Vertices farther out than this (pixels) cannot come from a sane fit, and would
 # overflow OpenCV's fixed-point drawing coordinates.

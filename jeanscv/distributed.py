@@ -1,4 +1,4 @@
-"""Run :func:`jeanscv.api.apply_jeans` over many files on a Dask cluster.
+"""Run :func:`jeanscv.pipeline.apply_jeans` over many files on a Dask cluster.
 
 Needs the optional dependency ``dask[distributed]`` (``pip install jeanscv[dask]``),
 imported only when :func:`run_on_dask` is called. Each input is one task; the task
@@ -11,7 +11,6 @@ never stops the others.
 
 from __future__ import annotations
 
-import inspect
 import json
 import os
 import time
@@ -20,6 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from .errors import JeansError
+from .options import JeansOptions
+from .runner import encode_picture, failure_reason, report_text
 
 #: Extensions that keep their format in the output; everything else gets ``.png``,
 #: except RAW files, whose developed photo is written as ``.jpg`` (the CLI's rule).
@@ -66,25 +67,15 @@ def output_paths(paths: Iterable[str | os.PathLike], output_dir: str | os.PathLi
     return out
 
 
-def _failure_reason(exc: BaseException) -> str:
-    """One line: a JeansError's message, else the exception's type and text."""
-    detail = " ".join(str(exc).split())
-    if isinstance(exc, JeansError):
-        return detail or "failed"
-    if isinstance(exc, MemoryError):
-        return "out of memory"
-    return f"unexpected error ({type(exc).__name__}{': ' + detail if detail else ''})"
-
-
-def process_one(source: str, picture: str, report: str, options: dict[str, Any], overwrite: bool = True) -> dict:
-    """One task: ``apply_jeans(source, **options)``, then write the picture and its JSON report.
+def process_one(source: str, picture: str, report: str, options: JeansOptions, overwrite: bool = True) -> dict:
+    """One task: ``apply_jeans(source, options)``, then write the picture and its JSON report.
 
     Never raises for a bad input: returns the record ``{"status": "ok"|"failed"|"skipped",
     "input", "output", "report", "error", "seconds", ...}``. Both files are encoded before
     either is written, so a failure leaves no output behind.
     """
-    from .api import apply_jeans
-    from .io.write import atomic_write_bytes, encode_image, format_for_path, write_text
+    from .io.write import atomic_write_bytes, write_text
+    from .pipeline import apply_jeans
 
     began = time.perf_counter()
     record: dict[str, Any] = {"status": "ok", "input": source, "output": picture, "report": report, "error": ""}
@@ -92,13 +83,9 @@ def process_one(source: str, picture: str, report: str, options: dict[str, Any],
         if not overwrite and os.path.exists(picture) and os.path.exists(report):
             record.update(status="skipped", error="its outputs exist already")
         else:
-            result = apply_jeans(source, **options)
-            meta = {}
-            if result.kind == "photo" and result.source is not None:
-                # Photos keep their EXIF (orientation already applied) and colour profile.
-                meta = {"exif": result.source.exif, "icc_profile": result.source.icc_profile}
-            data = encode_image(result.image, format_for_path(picture), quality=95, **meta)
-            text = json.dumps(result.report(source, picture), sort_keys=True, indent=2) + "\n"
+            result = apply_jeans(source, options)
+            data = encode_picture(picture, result.image, result)
+            text = report_text(result, source, picture)
             atomic_write_bytes(picture, data)
             write_text(report, text)
             fit = result.fit
@@ -112,7 +99,7 @@ def process_one(source: str, picture: str, report: str, options: dict[str, Any],
                 paper_total=float(fit.paper_total),
             )
     except Exception as exc:  # noqa: BLE001 - every failure becomes this input's one line
-        record.update(status="failed", output="", report="", error=_failure_reason(exc))
+        record.update(status="failed", output="", report="", error=failure_reason(exc))
     record["seconds"] = round(time.perf_counter() - began, 3)
     try:
         from distributed import get_worker
@@ -140,24 +127,23 @@ def run_on_dask(
             cluster for this call and closes it afterwards.
         report: optional path of the JSONL report (one record per line, input order).
         overwrite: False skips inputs whose two outputs exist (a resumed run).
-        apply_options: passed to :func:`jeanscv.api.apply_jeans` (``garment``,
-            ``preset``, ``iterations``, ``seed``, ...). The garment is resolved here, so a
-            ``.toml`` garment or a plugin garment need only exist on the driver;
-            silhouette plugins must be installed on the workers.
+        apply_options: the options of :func:`jeanscv.pipeline.apply_jeans`, by name
+            (:class:`jeanscv.options.JeansOptions`: ``garment``, ``preset``, ``iterations``,
+            ``seed``, ...), checked here. The garment is resolved here, so a ``.toml``
+            garment or a plugin garment need only exist on the driver; silhouette plugins
+            must be installed on the workers.
 
     Returns:
         The records of :func:`process_one` (with ``worker``, the address it ran on).
     """
     distributed = _dask_distributed()
-    from .api import apply_jeans
-    from .garments import get_garment
+    from .plugins import get_garment
 
-    try:
-        inspect.signature(apply_jeans).bind("input", **apply_options)
-    except TypeError as exc:
-        raise JeansError(f"bad apply_jeans option: {exc}") from None
-    if "garment" in apply_options:
-        apply_options["garment"] = get_garment(apply_options["garment"])
+    unknown = [name for name in apply_options if name not in JeansOptions.names()]
+    if unknown:
+        raise JeansError(f"bad apply_jeans option: got an unexpected keyword argument {unknown[0]!r}")
+    options = JeansOptions(**apply_options)
+    options = options.replace(garment=get_garment(options.garment))
     jobs = output_paths(paths, output_dir)
     try:
         Path(output_dir).mkdir(parents=True, exist_ok=True)
@@ -176,7 +162,7 @@ def run_on_dask(
             [str(p) for p, _, _ in jobs],
             [str(pic) for _, pic, _ in jobs],
             [str(rep) for _, _, rep in jobs],
-            options=apply_options,
+            options=options,
             overwrite=overwrite,
             pure=False,
         )
@@ -190,7 +176,7 @@ def run_on_dask(
                     "input": str(path),
                     "output": "",
                     "report": "",
-                    "error": f"the task failed on the cluster: {_failure_reason(exc)}",
+                    "error": f"the task failed on the cluster: {failure_reason(exc)}",
                     "seconds": 0.0,
                 }
             records.append(record)

@@ -9,10 +9,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .adam import BatchAdam
+from .device import resolve_backend
 from .errors import JeansError
 from .garments import JEANS, Garment
 from .geometry import CANVAS_SIZE
-from .objectives import make_descent, make_objective
+from .objectives import blurred, make_descent, make_objective
+from .posture import posture, tilt_degrees
 from .presets import Preset, get_preset
 from .terms import PAPER_TERMS, PAPER_WEIGHTS, STROKE_HALF_WIDTH, TERM_NAMES
 
@@ -33,36 +36,6 @@ DEFAULT_PLACEMENTS = (
     (0.8, 90.0),
     (0.8, -90.0),
 )
-
-
-def tilt_degrees(vertices: np.ndarray, garment: Garment) -> float:
-    """The angle between straight down the image and the line from the waistband's midpoint
-    to the midpoint of the outer hems (:attr:`Garment.hems`): 0 upright, 90 lying on its
-    side, 180 upside down. A framing (scale and shift) keeps it, so canvas and image
-    vertices give the same tilt."""
-    v = np.asarray(vertices, dtype=np.float64)
-    down = v[list(garment.hems)].mean(axis=0) - v[list(garment.waist)].mean(axis=0)
-    return float(np.degrees(np.arctan2(abs(down[0]), down[1])))
-
-
-#: Posture names by tilt: upright up to 30 degrees (the issue's bar), lying below 120.
-POSTURE_NAMES = ((30.0, "upright"), (120.0, "lying"), (180.0, "upside down"))
-
-
-def posture_name(tilt: float) -> str:
-    """``upright``, ``lying`` or ``upside down`` for a tilt in degrees (:func:`tilt_degrees`)."""
-    return next(name for limit, name in POSTURE_NAMES if tilt <= limit)
-
-
-def posture(vertices: np.ndarray, garment: Garment) -> int:
-    """The rules selection's coarse posture: 0 upright, 1 lying, 2 upside down, in 60-degree
-    bands of the direction from the waistband to the mean of the other vertices (kept as it
-    was, so that ``posture="any"`` reproduces the earlier choices)."""
-    v = np.asarray(vertices, dtype=np.float64)
-    waist = v[list(garment.waist)].mean(axis=0)
-    down = np.delete(v, list(garment.waist), axis=0).mean(axis=0) - waist
-    tilt = float(np.degrees(np.arctan2(abs(down[0]), down[1])))
-    return int(min(tilt // 60.0001, 2))
 
 
 @dataclass
@@ -139,24 +112,6 @@ def blur_schedule(sigmas: tuple[float, ...], iterations: int) -> list[float]:
     return [stages[min(i * len(stages) // max(iterations, 1), len(stages) - 1)] for i in range(iterations)]
 
 
-def gaussian_kernel(sigma: float) -> np.ndarray:
-    """kornia's normalised 1-D Gaussian of ``2 * ceil(3 sigma) + 1`` taps."""
-    radius = int(math.ceil(3 * sigma))
-    taps = np.exp(-(np.arange(-radius, radius + 1, dtype=np.float64) ** 2) / (2 * sigma**2))
-    return taps / taps.sum()
-
-
-def _blurred(silhouette: np.ndarray, sigma: float) -> np.ndarray:
-    """``S`` blurred as kornia.filters.gaussian_blur2d (separable, zeros outside the canvas)."""
-    if sigma <= 0:
-        return silhouette
-    taps = gaussian_kernel(sigma)
-    radius = len(taps) // 2
-    padded = np.pad(silhouette, radius)
-    rows = sum(w * padded[:, k : k + silhouette.shape[1]] for k, w in enumerate(taps))
-    return sum(w * rows[k : k + silhouette.shape[0]] for k, w in enumerate(taps))
-
-
 def _area_downsampled(silhouette: np.ndarray, factor: int) -> np.ndarray:
     """``S`` averaged over ``factor x factor`` blocks (exact area coverage at the coarser grid)."""
     if factor == 1:
@@ -190,49 +145,6 @@ def as_silhouette_array(silhouette) -> np.ndarray:
     if s.sum() < 1.0:
         raise JeansError("silhouette is empty")
     return s
-
-
-def adam_update(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_size, bias2, eps) -> None:
-    """One Adam update of ``params`` and its moments in place, in torch.optim.Adam's order
-    of operations; ``step_size = lr / (1 - beta1^t)``, ``bias2 = 1 - beta2^t``. Plain array
-    code: the fast backend's step loop compiles this same source with numba."""
-    exp_avg *= beta1
-    exp_avg += (1 - beta1) * grad
-    exp_avg_sq *= beta2
-    exp_avg_sq += (1 - beta2) * grad * grad
-    denom = np.sqrt(exp_avg_sq / bias2) + eps
-    params -= step_size * (exp_avg / denom)
-
-
-class BatchAdam:
-    """Adam (Kingma & Ba; torch.optim.Adam's defaults and update) over a batch of starts,
-    in numpy: the fit's parameters are a few hundred numbers, and torch.optim would
-    import torch._dynamo (1.6 s per process). The batch shrinks with its moments when
-    starts are pruned."""
-
-    def __init__(self, params: np.ndarray, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
-        self.params, self.lr, self.betas, self.eps = np.array(params, dtype=np.float64), lr, betas, eps
-        self.exp_avg = np.zeros_like(self.params)
-        self.exp_avg_sq = np.zeros_like(self.params)
-        self.steps = 0
-
-    def corrections(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(step_size, bias2)`` of the next ``steps`` steps (:func:`adam_update`)."""
-        beta1, beta2 = self.betas
-        counts = range(self.steps + 1, self.steps + steps + 1)
-        return np.array([self.lr / (1 - beta1**t) for t in counts]), np.array([1 - beta2**t for t in counts])
-
-    def step(self, grad: np.ndarray) -> None:
-        """One Adam update of ``params`` in place."""
-        step_size, bias2 = self.corrections(1)
-        self.steps += 1
-        adam_update(self.params, grad, self.exp_avg, self.exp_avg_sq, *self.betas, step_size[0], bias2[0], self.eps)
-
-    def keep(self, index: np.ndarray) -> None:
-        """Shrink the batch to the starts in ``index``, moments included."""
-        self.params = self.params[index]
-        self.exp_avg = self.exp_avg[index]
-        self.exp_avg_sq = self.exp_avg_sq[index]
 
 
 def _select(
@@ -343,10 +255,8 @@ def fit(
     upright plan's; see :func:`preset_placements`). ``posture``: ``upright`` (the
     preset's upright plan, if it has one) or ``any`` (:meth:`Preset.with_posture`).
     ``threads``: torch threads during a torch fit (None leaves torch's setting).
-    ``backend``: ``fast`` (numba, CPU) or ``torch``; None: :func:`jeanscv._fast.backend`.
+    ``backend``: ``fast`` (numba, CPU) or ``torch``; None: :func:`jeanscv.device.resolve_backend`.
     """
-    from ._fast import backend as resolve_backend
-
     preset = (get_preset(preset) if isinstance(preset, str) else preset).with_posture(posture)
     backend = resolve_backend(backend, device)
     with _torch_threads(threads, backend):
@@ -377,57 +287,23 @@ def _fit(
     path[0] = init
     active = np.arange(num_starts)  # which starts are still optimised
     prunings = _prunings(preset, iterations, num_starts)
-    prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
 
     evaluate = make_objective(backend, garment, preset.inter_pairs, preset.weights, device)
     descend = make_descent(backend, garment, preset.inter_pairs, preset.weights, device)
-
-    def half_width(target: np.ndarray) -> float:
-        return STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
-
-    def objective(pixels: np.ndarray, target: np.ndarray, need_grad: bool = True):
-        return evaluate(pixels, target, half_width(target), need_grad)
-
-    screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
-    sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
-
-    def target_key(step: int) -> tuple[float, int]:
-        # Screening runs on a coarser canvas: which starts are promising shows there
-        # at a fraction of the cost, and the normalised vertices carry over as they are.
-        return sigma_per_iteration[step], screen_factor if step <= prune_step else 1
-
-    target_cache: dict[tuple[float, int], np.ndarray] = {}
-    step = 0
-    while step < iterations:
-        # A stretch of steps on one target, up to a pruning, goes to the backend at once.
-        key = target_key(step)
-        stop = step + 1
-        while stop < iterations and stop - 1 not in prunings and target_key(stop) == key:
-            stop += 1
-        if key not in target_cache:
-            sigma, factor = key
-            target_cache[key] = _area_downsampled(_blurred(s, sigma), factor)
-        target = target_cache[key]
-        totals, params = descend(optimizer, target, stop - step, half_width(target))
+    for step, stop, target in _stretches(s, preset, iterations, prunings, backend):
+        totals, params = descend(optimizer, target, stop - step, _half_width(target))
         if len(totals) < stop - step:
             raise JeansError("the fit diverged (non-finite loss)")
         history[step:stop, active] = totals
         path[step + 1 : stop + 1, active] = params * CANVAS_SIZE
-        step = stop
-        if step - 1 in prunings:
+        if stop - 1 in prunings:
             # Successive halving: keep optimising only the most promising starts.
-            pruned = step - 1
-            if preset.upright:
-                tilts = [tilt_degrees(v, garment) for v in path[step, active]]
-                order = _upright_survivors(history[pruned, active], tilts, preset.upright.max_tilt, *prunings[pruned])
-            else:
-                postures = [posture(v, garment) for v in path[step, active]]
-                order = _survivors(history[pruned, active], postures, preset)
+            order = _pruned(history[stop - 1, active], path[stop, active], prunings[stop - 1], preset, garment)
             optimizer.keep(order)
             active = active[order]
 
     final = optimizer.params * CANVAS_SIZE
-    totals, _, terms = objective(final, s, need_grad=False)
+    totals, _, terms = evaluate(final, s, _half_width(s), False)
     totals = np.where(np.isfinite(totals), totals, math.inf)
     best = _select(final, totals, s, garment, preset)
     vertices = final[best]
@@ -457,3 +333,48 @@ def _fit(
         device=str(device),
         extra={"backend": backend},
     )
+
+
+def _half_width(target: np.ndarray) -> float:
+    """The strokes' half width in pixels of ``target``'s canvas (a screening canvas is coarser)."""
+    return STROKE_HALF_WIDTH * target.shape[-1] / CANVAS_SIZE
+
+
+def _stretches(s: np.ndarray, preset: Preset, iterations: int, prunings: dict, backend: str):
+    """``(step, stop, target)`` for each stretch of steps on one target, up to a pruning:
+    the backend runs each at once. Targets are ``s`` blurred by the preset's schedule and,
+    until the first pruning, on its coarser screening canvas; each is made once."""
+    prune_step = min(prunings, default=-1)  # the screening canvas serves until the first
+    screen_factor = _screen_factor(preset) if prune_step >= 0 else 1
+    sigma_per_iteration = blur_schedule(preset.blur_sigmas, iterations)
+
+    def target_key(step: int) -> tuple[float, int]:
+        # Screening runs on a coarser canvas: which starts are promising shows there
+        # at a fraction of the cost, and the normalised vertices carry over as they are.
+        return sigma_per_iteration[step], screen_factor if step <= prune_step else 1
+
+    target_cache: dict[tuple[float, int], np.ndarray] = {}
+    step = 0
+    while step < iterations:
+        key = target_key(step)
+        stop = step + 1
+        while stop < iterations and stop - 1 not in prunings and target_key(stop) == key:
+            stop += 1
+        if key not in target_cache:
+            sigma, factor = key
+            target_cache[key] = _area_downsampled(blurred(s, sigma, backend), factor)
+        yield step, stop, target_cache[key]
+        step = stop
+
+
+def _pruned(
+    objectives: np.ndarray, vertices: np.ndarray, survivors: tuple[int, int] | None, preset: Preset, garment: Garment
+) -> np.ndarray:
+    """Sorted indices of the active starts that go on after a pruning, from their
+    objectives and canvas ``vertices`` at it (:func:`_upright_survivors` under an upright
+    plan, with its ``survivors`` counts; else :func:`_survivors`)."""
+    if preset.upright:
+        tilts = [tilt_degrees(v, garment) for v in vertices]
+        return _upright_survivors(objectives, tilts, preset.upright.max_tilt, *survivors)
+    postures = [posture(v, garment) for v in vertices]
+    return _survivors(objectives, postures, preset)

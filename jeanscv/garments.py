@@ -2,8 +2,9 @@
 
 A garment is data. Vertices are in canvas pixels (x right, y down) on the 256 canvas;
 edge ``i`` runs from vertex ``i`` to vertex ``(i + 1) % n``. Built-ins: ``jeans`` (the
-paper's), ``shorts`` and ``skirt``; more come from TOML files (:func:`load_garment`)
-and from plugins (:mod:`jeanscv.plugins`).
+paper's), ``shorts`` and ``skirt``; more come from TOML files (:meth:`Garment.from_toml`)
+and from plugins; :func:`jeanscv.plugins.get_garment` finds a garment by name or path
+among all of them.
 
 A garment TOML file::
 
@@ -458,42 +459,6 @@ SKIRT = Garment(
 GARMENTS: dict[str, Garment] = {g.name: g for g in (JEANS, SHORTS, SKIRT)}
 
 
-def _looks_like_path(name: str) -> bool:
-    return name.lower().endswith(".toml") or os.sep in name or "/" in name
-
-
-def load_garment(path_or_name: str | os.PathLike) -> Garment:
-    """A garment by name (built-in or plugin) or from a ``.toml`` file path."""
-    return get_garment(path_or_name)
-
-
-def get_garment(name: str | os.PathLike | Garment) -> Garment:
-    """Resolve a garment: a :class:`Garment` as is, then a built-in name, then a plugin
-    garment (entry-point group ``jeanscv.garments``), then a path to a ``.toml`` file.
-
-    Built-ins win over plugins of the same name; a name that is none of these raises
-    :class:`JeansError` listing the known names.
-    """
-    if isinstance(name, Garment):
-        return name
-    if isinstance(name, os.PathLike):
-        return Garment.from_toml(name)
-    if not isinstance(name, str):
-        raise JeansError(f"a garment is a name or a .toml path, got {type(name).__name__}")
-    if name in GARMENTS:
-        return GARMENTS[name]
-    if not _looks_like_path(name):
-        from .plugins import plugin_garments
-
-        plugins = plugin_garments()
-        if name in plugins:
-            return plugins[name]
-        if not os.path.isfile(name):
-            known = sorted({*GARMENTS, *plugins})
-            raise JeansError(f"unknown garment {name!r} (known: {', '.join(known)}; or a .toml file)")
-    return Garment.from_toml(name)
-
-
 __all__ = [
     "DRAW_STYLES",
     "GARMENTS",
@@ -502,7 +467,5 @@ __all__ = [
     "SHORTS",
     "SKIRT",
     "crossing_edges",
-    "get_garment",
-    "load_garment",
     "polygon_area",
 ]

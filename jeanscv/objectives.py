@@ -1,5 +1,6 @@
 """The fit's objective, evaluated by the chosen backend: numpy in, numpy out; and the
-exact polygon and stroke coverage that the rule checks and the compositor need.
+exact polygon and stroke coverage that the rule checks and the compositor need, and the
+blurred targets of the fit's coarse-to-fine schedule (:func:`blurred`).
 
 ``fast`` is the numba kernel (:mod:`jeanscv._fast`), ``torch`` the differentiable
 reference (:mod:`jeanscv.loss`, autograd), which also runs on CUDA. Both take
@@ -11,17 +12,19 @@ both work in float64 and agree to rounding, so a fit takes the same path either 
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 
 import numpy as np
 
+from .device import fast_available
 from .garments import Garment
 from .terms import TERM_NAMES, check_inter_pairs
 
 #: ``(pixels (B, N, 2), target (C, C), stroke half width, need_grad)`` ->
 #: ``(totals (B,), d totals / d pixels (B, N, 2) or None, {term: (B,)})``.
 ObjectiveFunction = Callable[[np.ndarray, np.ndarray, float, bool], tuple[np.ndarray, np.ndarray | None, dict]]
-#: ``(optimizer (fitter.BatchAdam), target (C, C), steps, stroke half width)`` -> ``(totals
+#: ``(optimizer (adam.BatchAdam), target (C, C), steps, stroke half width)`` -> ``(totals
 #: (k, B), normalised params after each step (k, B, N, 2))``; ``k < steps``: at step ``k``
 #: every start diverged.
 DescentFunction = Callable[[object, np.ndarray, int, float], tuple[np.ndarray, np.ndarray]]
@@ -114,13 +117,43 @@ def _torch_objective(garment: Garment, inter_pairs: str, weights: dict[str, floa
     return evaluate
 
 
+def gaussian_kernel(sigma: float) -> np.ndarray:
+    """kornia's normalised 1-D Gaussian of ``2 * ceil(3 sigma) + 1`` taps."""
+    radius = int(math.ceil(3 * sigma))
+    taps = np.exp(-(np.arange(-radius, radius + 1, dtype=np.float64) ** 2) / (2 * sigma**2))
+    return taps / taps.sum()
+
+
+def blurred(silhouette: np.ndarray, sigma: float, backend: str = "fast") -> np.ndarray:
+    """``S`` ``(C, C)`` float64 blurred by a Gaussian of ``sigma`` px, zeros outside the canvas.
+
+    The torch path uses kornia (``kornia.filters.gaussian_blur2d``, ``2 * ceil(3 sigma) + 1``
+    taps); the fast path, which imports neither torch nor kornia, its numpy twin (the same
+    taps, separable), which agrees with it to 1e-14.
+    """
+    if sigma <= 0:
+        return silhouette
+    if backend == "torch":
+        import kornia
+        import torch
+
+        size = 2 * int(math.ceil(3 * sigma)) + 1
+        image = torch.as_tensor(silhouette)[None, None]
+        return kornia.filters.gaussian_blur2d(image, (size, size), (sigma, sigma), border_type="constant")[0, 0].numpy()
+    taps = gaussian_kernel(sigma)
+    radius = len(taps) // 2
+    padded = np.pad(silhouette, radius)
+    rows = sum(w * padded[:, k : k + silhouette.shape[1]] for k, w in enumerate(taps))
+    return sum(w * rows[k : k + silhouette.shape[0]] for k, w in enumerate(taps))
+
+
 def polygon_coverage(vertices: np.ndarray, height: int, width: int) -> np.ndarray:
     """Exact coverage ``(height, width)`` of the closed polygon ``vertices`` ``(N, 2)``:
     the numba kernel when numba is installed (no torch import), else the torch
     rasterizer; the same exact area either way."""
     from . import _fast
 
-    if _fast.available():
+    if fast_available():
         return _fast.polygon_coverage(vertices, height, width)
     import torch
 
@@ -134,7 +167,7 @@ def stroke_coverage(start: np.ndarray, end: np.ndarray, height: int, width: int)
     same backend as :func:`polygon_coverage`."""
     from . import _fast
 
-    if _fast.available():
+    if fast_available():
         return _fast.stroke_coverage(start, end, height, width)
     import torch
 

@@ -1,4 +1,5 @@
-"""Plugins: garments and silhouette extractors from other installed distributions.
+"""Plugins: garments and silhouette extractors from other installed distributions, and the
+look-ups by name that put them beside the built-ins (:func:`get_garment`, :func:`get_silhouette_method`).
 
 A distribution adds them with entry points (in its ``pyproject.toml``)::
 
@@ -20,6 +21,7 @@ import dataclasses
 import functools
 import importlib
 import importlib.metadata
+import os
 import warnings
 from collections.abc import Callable
 from typing import Any
@@ -28,12 +30,13 @@ import numpy as np
 
 from .errors import JeansError
 from .garments import GARMENTS, Garment
+from .options import SILHOUETTE_METHODS
 
 GARMENT_GROUP = "jeanscv.garments"
 SILHOUETTE_GROUP = "jeanscv.silhouettes"
 
 #: Built-in segmentation methods offered by name (``mask`` needs a mask, so it is not one).
-BUILTIN_SILHOUETTE_METHODS = ("auto", "alpha", "threshold", "grabcut")
+BUILTIN_SILHOUETTE_METHODS = SILHOUETTE_METHODS
 
 SilhouetteMethod = Callable[..., Any]
 
@@ -125,6 +128,40 @@ def plugin_garments() -> dict[str, Garment]:
 def available_garments() -> dict[str, Garment]:
     """Every garment by name: the built-ins first, then plugin garments."""
     return {**GARMENTS, **plugin_garments()}
+
+
+def _looks_like_path(name: str) -> bool:
+    return name.lower().endswith(".toml") or os.sep in name or "/" in name
+
+
+def load_garment(path_or_name: str | os.PathLike) -> Garment:
+    """A garment by name (built-in or plugin) or from a ``.toml`` file path."""
+    return get_garment(path_or_name)
+
+
+def get_garment(name: str | os.PathLike | Garment) -> Garment:
+    """Resolve a garment: a :class:`Garment` as is, then a built-in name, then a plugin
+    garment (entry-point group ``jeanscv.garments``), then a path to a ``.toml`` file.
+
+    Built-ins win over plugins of the same name; a name that is none of these raises
+    :class:`JeansError` listing the known names.
+    """
+    if isinstance(name, Garment):
+        return name
+    if isinstance(name, os.PathLike):
+        return Garment.from_toml(name)
+    if not isinstance(name, str):
+        raise JeansError(f"a garment is a name or a .toml path, got {type(name).__name__}")
+    if name in GARMENTS:
+        return GARMENTS[name]
+    if not _looks_like_path(name):
+        plugins = plugin_garments()
+        if name in plugins:
+            return plugins[name]
+        if not os.path.isfile(name):
+            known = sorted({*GARMENTS, *plugins})
+            raise JeansError(f"unknown garment {name!r} (known: {', '.join(known)}; or a .toml file)")
+    return Garment.from_toml(name)
 
 
 def _builtin_method(name: str) -> SilhouetteMethod:
@@ -226,8 +263,10 @@ __all__ = [
     "available_garments",
     "available_silhouette_methods",
     "extract_mask",
+    "get_garment",
     "get_silhouette_method",
     "is_plugin_silhouette_method",
+    "load_garment",
     "plugin_garments",
     "refresh",
     "segment_with",

@@ -6,11 +6,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 
 from .errors import JeansError
+from .options import POSTURES
 from .terms import PAPER_WEIGHTS
-
-#: ``upright``: the preset's own upright plan (if it has one); ``any``: every posture
-#: competes as before the plan existed (the plan's term, starts, pruning and choice off).
-POSTURES = ("upright", "any")
 
 
 @dataclass(frozen=True)

@@ -1,14 +1,16 @@
 """Shared test set-up: the CLI package importable from a source checkout, and CLI fixtures.
 
+The repository root is on ``sys.path`` (pytest's ``pythonpath``, pyproject.toml), so the
+tests import ``jeanscv`` from a plain checkout and their data from ``testkit``.
+
 After ``pip install -e .`` the CLI is the package ``jeanscv_cli``; in a plain
-checkout ``jeanscv/__main__.py`` loads the ``cli/`` folder under that name.
+checkout ``jeanscv/_command.py`` loads the ``cli/`` folder under that name.
 """
 
 from __future__ import annotations
 
 import importlib.util
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,10 +21,8 @@ SHARED = ROOT.parent / "shared" / "silhouettes"
 #: The paper's seven silhouettes in SHARED (NAME.png, NAME.svg).
 PAPER_SHAPES = ("person", "vitruvian", "dog", "horse", "tripod", "balldragon", "extra_0")
 
-if importlib.util.find_spec("jeanscv") is None:
-    sys.path.insert(0, str(ROOT))
 if importlib.util.find_spec("jeanscv_cli") is None:
-    import jeanscv.__main__  # noqa: F401  (registers jeanscv_cli from ./cli)
+    import jeanscv._command  # noqa: F401  (registers jeanscv_cli from ./cli)
 
 # A person-like polygon in a 256x256 viewBox: the SVG used when shared/ is absent.
 _PERSON_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="256" height="256" viewBox="0 0 256 256">
@@ -71,7 +71,7 @@ def write_silhouette_png(path: Path, name: str = "person") -> Path:
     if (SHARED / f"{name}.png").is_file():
         shutil.copyfile(SHARED / f"{name}.png", path)
     else:
-        from jeanscv.synthetic import ZOO, silhouette_zoo
+        from testkit.synthetic import ZOO, silhouette_zoo
 
         key = name if name in ZOO else "person"
         alpha = silhouette_zoo([key])[key]

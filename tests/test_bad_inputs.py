@@ -137,13 +137,13 @@ def test_bad_file_alone(tmp_path, run_cli, capfd, name):
 
 
 @pytest.mark.parametrize("point", ["128,10", "-1,10", "10,96", "1e9,5"])
-def test_point_outside_the_image_is_a_usage_error(tmp_path, run_cli, point):
+def test_click_outside_the_image_fails_that_input(tmp_path, run_cli, point):
     photo = tmp_path / "photo.png"
     photo.write_bytes(_encoded(_ellipse_photo(0.6)[0], "PNG"))  # 128x96
     result = run_cli(photo, *FAST, "--json", "-q", f"--point={point}")
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     x, y = (float(v) for v in point.split(","))
-    assert result.stderr.splitlines() == [f"jeanscv: {photo}: point ({x:g}, {y:g}) is outside the 128x96 image"]
+    assert result.stderr.splitlines() == [f"jeanscv: {photo}: click ({x:g}, {y:g}) is outside the 128x96 image"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
 
 
@@ -210,12 +210,12 @@ def test_unwritable_output_folder(tmp_path, run_cli, monkeypatch):
 
 
 def test_unexpected_exception_is_one_line(tmp_path, run_cli, monkeypatch):
-    from jeanscv import api
+    from jeanscv import pipeline
 
     def boom(*args, **kwargs):
         raise RuntimeError("something\nbroke")
 
-    monkeypatch.setattr(api, "apply_jeans", boom)
+    monkeypatch.setattr(pipeline, "apply_jeans", boom)
     src = write_silhouette_png(tmp_path / "a.png")
     result = run_cli(src, *FAST, "-q")
     assert result.exit_code == 1

@@ -222,7 +222,7 @@ print(default, kept_after_free(), cv2.getNumThreads(), "torch" in sys.modules)
 )
 def test_worker_setup_shares_cores_and_keeps_freed_memory():
     done = subprocess.run(
-        [sys.executable, "-c", "import jeanscv.__main__\n" + _WORKER_SETUP, "1"],
+        [sys.executable, "-c", "import jeanscv._command\n" + _WORKER_SETUP, "1"],
         capture_output=True,
         text=True,
         env=_env(),

@@ -19,7 +19,7 @@ from jeanscv.api import apply_jeans
 from jeanscv.distributed import output_paths, run_on_dask
 from jeanscv.errors import JeansError
 from jeanscv.io.write import encode_image, output_extension
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 SHAPES = ["person", "dog", "bottle"]
 ITERATIONS = 10

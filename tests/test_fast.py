@@ -18,14 +18,18 @@ import torch
 from conftest import ROOT, paper_silhouette
 
 from jeanscv import _fast
-from jeanscv.fitter import _area_downsampled, _blurred, fit, posture
+from jeanscv.adam import BatchAdam
+from jeanscv.device import fast_available
+from jeanscv.fitter import _area_downsampled, fit
 from jeanscv.garments import JEANS
 from jeanscv.loss import TERM_NAMES, jalgorithm_terms, weighted_total
+from jeanscv.objectives import blurred
+from jeanscv.posture import posture
 from jeanscv.presets import get_preset
 from jeanscv.render import polygon_coverage, polygon_edges, stroke_coverage
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
-pytestmark = pytest.mark.skipif(not _fast.available(), reason="numba is not installed")
+pytestmark = pytest.mark.skipif(not fast_available(), reason="numba is not installed")
 
 UPRIGHT_WEIGHT = 40.0  # the default preset's weight on upright once issue 12 lands
 
@@ -89,7 +93,7 @@ def test_screening_canvas_and_blurred_targets_equal_torch():
     silhouette = silhouette_zoo(["spider"])["spider"].astype(np.float64)
     small = _area_downsampled(silhouette, 2)
     _assert_same(_random_jeans(rng, 12, size=128), small, "default", half_width=1.25)
-    _assert_same(_random_jeans(rng, 8), _blurred(silhouette, 3.0), "paper")
+    _assert_same(_random_jeans(rng, 8), blurred(silhouette, 3.0), "paper")
 
 
 def test_wildly_off_canvas_and_degenerate_jeans_equal_torch():
@@ -119,6 +123,7 @@ def test_rasterized_maps_equal_the_torch_rasterizer():
 
 
 def test_the_blur_equals_kornias():
+    """The fast path's numpy blur matches kornia's, which the torch path uses."""
     import kornia
 
     silhouette = silhouette_zoo(["crab"])["crab"].astype(np.float64)
@@ -127,7 +132,8 @@ def test_the_blur_equals_kornias():
         theirs = kornia.filters.gaussian_blur2d(
             torch.as_tensor(silhouette)[None, None], (2 * radius + 1,) * 2, (sigma, sigma), border_type="constant"
         )[0, 0].numpy()
-        np.testing.assert_allclose(_blurred(silhouette, sigma), theirs, atol=1e-14)
+        np.testing.assert_array_equal(blurred(silhouette, sigma, "torch"), theirs)
+        np.testing.assert_allclose(blurred(silhouette, sigma, "fast"), theirs, atol=1e-14)
 
 
 @pytest.mark.parametrize(
@@ -184,7 +190,6 @@ def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, 
 def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_starts():
     import functools
 
-    from jeanscv.fitter import BatchAdam
     from jeanscv.objectives import descend_by_steps, make_objective
 
     silhouette = silhouette_zoo(["dog"])["dog"].astype(np.float64)
@@ -218,8 +223,7 @@ def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
         import numpy as np
         from jeanscv import _fast
         from jeanscv._fast.objective import descend, objective
-        from jeanscv.fitter import BatchAdam
-        from jeanscv.garments import JEANS
+            from jeanscv.garments import JEANS
         kernel = _fast.Objective(JEANS, "all", {"coverage": 1.0})
         kernel(JEANS.template[None], np.ones((256, 256)))
         kernel.descend(BatchAdam(JEANS.template[None] / 256, 0.01), np.ones((256, 256)), 2, 2.5)

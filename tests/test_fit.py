@@ -11,10 +11,11 @@ from reference import loss_terms_ref
 
 from jeanscv.checks import rule_report, self_intersects
 from jeanscv.errors import JeansError
-from jeanscv.fitter import fit, initial_placements, posture
+from jeanscv.fitter import fit, initial_placements
 from jeanscv.garments import JEANS
+from jeanscv.posture import posture
 from jeanscv.render import polygon_coverage
-from jeanscv.synthetic import ZOO, silhouette_zoo
+from testkit.synthetic import ZOO, silhouette_zoo
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +142,7 @@ def test_rule_checks_on_hand_made_cases():
 
 
 def test_batch_adam_matches_torch_adam():
-    from jeanscv.fitter import BatchAdam
+    from jeanscv.adam import BatchAdam
 
     start = torch.tensor([[1.0, -2.0], [0.5, 3.0]], dtype=torch.float64)
     ours = BatchAdam(start.numpy().copy(), lr=1e-2)
@@ -156,7 +157,7 @@ def test_batch_adam_matches_torch_adam():
 
 
 def test_posture_classes():
-    from jeanscv.fitter import tilt_degrees
+    from jeanscv.posture import tilt_degrees
 
     centre = JEANS.template[list(JEANS.waist)].mean(axis=0)
 
@@ -173,12 +174,13 @@ def test_posture_classes():
 def test_a_blur_schedule_runs_coarse_to_fine(zoo):
     import dataclasses
 
-    from jeanscv.fitter import _blurred, blur_schedule
+    from jeanscv.fitter import blur_schedule
+    from jeanscv.objectives import blurred as blur
     from jeanscv.presets import get_preset
 
     assert blur_schedule((4.0, 2.0), 9) == [4.0] * 3 + [2.0] * 3 + [0.0] * 3
     silhouette = zoo["disc"].astype(np.float64)
-    blurred = _blurred(silhouette, 3.0)
+    blurred = blur(silhouette, 3.0)
     # Mass is kept (the disc is far from the border) and the edge is softened.
     assert float(blurred.sum()) == pytest.approx(float(silhouette.sum()), rel=1e-4)
     assert float(((blurred > 0.02) & (blurred < 0.98)).sum()) > 2 * float(

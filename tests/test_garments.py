@@ -9,10 +9,11 @@ import torch
 from jeanscv.compositing import render_silhouette_figure
 from jeanscv.errors import JeansError
 from jeanscv.fitter import fit, initial_placements, preset_placements
-from jeanscv.garments import GARMENTS, JEANS, SHORTS, SKIRT, Garment, get_garment, load_garment, polygon_area
+from jeanscv.garments import GARMENTS, JEANS, SHORTS, SKIRT, Garment, polygon_area
 from jeanscv.loss import jalgorithm_terms, weighted_total
+from jeanscv.plugins import get_garment, load_garment
 from jeanscv.presets import get_preset
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 #: A six-vertex garment (neckline 2-3 and hem 5-0 open), as a TOML file would give it.
 CAPE_TOML = """\

@@ -22,7 +22,7 @@ from jeanscv.loss import (
     upright_term,
     weighted_total,
 )
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 TERMS = ("center", "coverage", "rigid", "open", "closed", "inter", "inside")
 F64 = torch.float64

@@ -1,5 +1,6 @@
-"""Several objects in one photo: splitting, picking by a point, seeded GrabCut, and
-``--objects all`` / ``--point`` end to end (API and CLI)."""
+"""Several objects in one photo: splitting, picking a user mask's piece by a point, and
+``--objects all`` / ``--point`` end to end (API and CLI). Clicks themselves:
+``test_clicks.py``."""
 
 from __future__ import annotations
 
@@ -10,14 +11,13 @@ import cv2
 import numpy as np
 import pytest
 from PIL import Image
-from synthetic_photos import iou, two_objects
 
 from jeanscv.api import apply_jeans, extract_silhouettes
 from jeanscv.compositing import polygon_coverage_patch
 from jeanscv.errors import JeansError, OptionError
 from jeanscv.geometry import mask_box
 from jeanscv.silhouette.objects import check_point, object_at, split_objects
-from jeanscv.silhouette.seeded import point_labels, segment_at_point
+from testkit.synthetic_photos import iou, two_objects
 
 FIT = dict(iterations=40, starts=4)
 CLI_FIT = ("--iterations", "40", "--starts", "4")
@@ -110,25 +110,6 @@ def test_check_point_rejects_points_off_the_image(point):
         check_point(point, (100, 200))
 
 
-def test_point_labels_seed_a_disc_at_the_point_and_the_border():
-    labels = point_labels((100, 200), (50, 40))
-    assert labels[40, 50] == cv2.GC_FGD  # the certain disc: radius 2% of 100 = 2 px
-    assert labels[40, 53] == cv2.GC_PR_FGD  # the probable disc: radius 40% of 100 = 40 px
-    assert labels[40, 89] == cv2.GC_PR_FGD and labels[40, 91] == cv2.GC_PR_BGD
-    assert (labels[0] == cv2.GC_BGD).all() and (labels[:, -1] == cv2.GC_BGD).all()
-    near_border = point_labels((100, 200), (1, 1))
-    assert near_border[1, 1] == cv2.GC_FGD  # the certain disc wins over the ring
-
-
-def test_segment_at_point_finds_the_clicked_object():
-    photo = scene()
-    left, right = photo.masks
-    result = segment_at_point(photo.image, inside_point(left))
-    assert result.method == "point"
-    assert iou(result.mask, left) > 0.75
-    assert not (result.mask & right).any()
-
-
 # --------------------------------------------------------------------------- API
 
 
@@ -174,43 +155,15 @@ def test_apply_jeans_point_picks_that_object(which):
     assert not changed[photo.masks[1 - which]].any()
 
 
-def test_a_point_off_the_automatic_mask_segments_around_itself():
+def test_with_a_user_mask_a_point_picks_its_piece():
     photo = scene()
     left, right = photo.masks
-    # The user's mask holds only the right object; the click is on the left one.
-    silhouettes = extract_silhouettes(photo.image, mask=right, points=[inside_point(left)], objects="all")
-    assert [s.method for s in silhouettes] == ["point", "mask"]
-    assert iou(np.asarray(silhouettes[0].mask, bool), left) > 0.75
-    assert iou(np.asarray(silhouettes[1].mask, bool), right) > 0.95
-
-
-@pytest.mark.parametrize("uncertain", [False, True])
-def test_a_point_on_an_uncertain_subject_segments_around_itself(monkeypatch, uncertain):
-    """A wrong automatic subject can hold the clicked object (two animals joined by what
-    stands behind them). When auto was sure, the click picks that subject as it is; when
-    its hypotheses disagreed (``details["uncertain"]``), the click is segmented on its own."""
-    import jeanscv.api as api
-
-    photo = scene()
-    left, right = photo.masks
-    blob = (left | right).astype(np.uint8)
-    ends = [tuple(int(v) for v in inside_point(m)) for m in (left, right)]
-    cv2.line(blob, *ends, 1, thickness=max(3, left.shape[0] // 20))  # joined into one object
-    real = api.extract_silhouette
-
-    def auto(pixels, method="auto", **_):
-        found = real(pixels, mask=blob.astype(bool))
-        found.details["uncertain"] = uncertain
-        return found
-
-    monkeypatch.setattr(api, "extract_silhouette", auto)
-    (silhouette,) = extract_silhouettes(photo.image, points=[inside_point(right)])
-    picked = np.asarray(silhouette.mask, bool)
-    if uncertain:
-        assert silhouette.method == "point"
-        assert iou(picked, right) > 0.75 and not (picked & left).any()
-    else:
-        assert silhouette.method == "mask" and (picked & left).any()
+    first, second = extract_silhouettes(photo.image, mask=left | right, points=[inside_point(right)], objects="all")
+    assert first.method == second.method == "mask"
+    assert iou(np.asarray(first.mask, bool), right) > 0.95 and first.details["point"] == list(inside_point(right))
+    assert iou(np.asarray(second.mask, bool), left) > 0.95
+    with pytest.raises(JeansError, match=r"^no object of the mask at point"):
+        extract_silhouettes(photo.image, mask=right, points=[inside_point(left)])
 
 
 def test_a_given_mask_keeps_objects_its_cleaning_would_drop():
@@ -292,7 +245,7 @@ def test_points_are_pixels_of_the_photo_as_displayed_also_for_half_size_raw():
     from jeanscv.api import prepare_input
 
     sample = ROOT / "sample_images" / "coffee.dng"  # 600x400 as displayed
-    with pytest.raises(OptionError, match=r"^point \(600, 10\) is outside the 600x400 image$"):
+    with pytest.raises(JeansError, match=r"^click \(600, 10\) is outside the 600x400 image$"):
         prepare_input(sample, raw_half_size=True, points=[(600, 10)])
     silhouettes, kind, pixels, loaded = prepare_input(sample, raw_half_size=True, points=[(300, 200)])
     assert kind == "photo" and pixels.shape == (200, 300, 3) and loaded.original_size == (600, 400)

@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from jeanscv.api import apply_jeans, silhouette_from_drawing
-from jeanscv.synthetic import silhouette_zoo
+from testkit.synthetic import silhouette_zoo
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_images"
 

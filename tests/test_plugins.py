@@ -21,7 +21,8 @@ import pytest
 
 from jeanscv import plugins
 from jeanscv.errors import JeansError
-from jeanscv.garments import GARMENTS, get_garment
+from jeanscv.garments import GARMENTS
+from jeanscv.plugins import get_garment
 
 try:
     import tomllib
@@ -136,7 +137,7 @@ def test_example_plugin_garment_is_discovered(site):
 
 def test_plugin_garment_fits_through_the_api(site):
     from jeanscv import api
-    from jeanscv.synthetic import silhouette_zoo
+    from testkit.synthetic import silhouette_zoo
 
     result = api.fit(silhouette_zoo(["person"])["person"], garment="cape", iterations=5, starts=2)
     assert result.garment.name == "cape" and result.vertices.shape == (6, 2)

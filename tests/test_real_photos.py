@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from real_photo_set import photo_paths, reference_mask
-from synthetic_photos import iou
 
 from jeanscv.io.image import load_image
 from jeanscv.silhouette.photo import segment
+from testkit.real_photo_set import photo_paths, reference_mask
+from testkit.synthetic_photos import iou
 
 # IoU reached on 2026-11-23 (horizon bands left out, one-side contact): 0002-01 0.89,
 # 0003 0.90, bike 0.48, boat 0.80, girl 0.60, hockey 0.13, horse 0.92, im_01 0.74, im_14

@@ -1,5 +1,5 @@
 """Tests for jeanscv.silhouette.photo: exact answers on tiny inputs, then the quality bar
-(auto reaches IoU >= 0.9 on every synthetic photo of tests/synthetic_photos.py)."""
+(auto reaches IoU >= 0.9 on every synthetic photo of testkit/synthetic_photos.py)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import time
 
 import numpy as np
 import pytest
-from synthetic_photos import case_names, iou, photo
 
 from jeanscv.errors import JeansError
 from jeanscv.silhouette.photo import Segmentation, clean_mask, segment
+from testkit.synthetic_photos import case_names, iou, photo
 
 # ----------------------------------------------------------------------------- helpers
 

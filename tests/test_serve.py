@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from conftest import write_silhouette_png
 from PIL import Image
-from synthetic_photos import two_objects
 from test_bad_inputs import BAD_FILES
 from test_objects import inside_point, share_on
+
+from testkit.synthetic_photos import two_objects
 
 starlette = pytest.importorskip("starlette")
 from starlette.testclient import TestClient  # noqa: E402
@@ -349,18 +350,26 @@ def test_folder_fix_with_clicks(make_client, folder):
     assert other.status_code == 422
 
 
-@pytest.mark.xfail(strict=False, reason="needs the CLI sidecar pickup")
 def test_folder_clicks_replay_through_the_command_line(make_client, folder, run_cli):
-    """A clicks file saved by the page gives the same output through ``jeanscv FOLDER``."""
+    """A clicks file saved by the page gives the same output through ``jeanscv FOLDER``,
+    and the page's own full-size picture of those clicks is that output too."""
     client = make_client(folder=folder)
     items = client.get("/api/folder").json()["items"]
     index = next(item["item"] for item in items if item["name"] == "pets.png")
     photo = client.post(f"/api/folder/{index}/open").json()["photo"]
-    point = inside_point(scene().masks[1])
-    client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": [{"positive": [point]}]})
+    objects = [{"positive": [inside_point(scene().masks[1])]}, {"positive": [inside_point(scene().masks[0])]}]
+    page = client.post(f"/api/photos/{photo}/render", json={"objects": objects}).json()
+    on_page = client.get(page["downloads"]["image"]).content
+    assert client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": objects}).status_code == 200
     served = (folder / "pets.jeans.png").read_bytes()
     (folder / "pets.jeans.png").unlink()
-    result = run_cli(folder / "pets.png", "-q")
+    result = run_cli(folder, "-q")  # the batch picks the saved clicks up
     assert result.exit_code == 0, result.stderr
-    with Image.open(folder / "pets.jeans.png") as a, Image.open(io.BytesIO(served)) as b:
-        assert np.array_equal(np.asarray(a), np.asarray(b))
+    with Image.open(folder / "pets.jeans.png") as cli_output:
+        expected = np.asarray(cli_output)
+    for picture in (served, on_page):
+        with Image.open(io.BytesIO(picture)) as image:
+            assert np.array_equal(np.asarray(image), expected)
+    # The clicks dressed both objects, the dog first.
+    changed = np.any(expected[..., :3] != scene().image, axis=-1)
+    assert all(changed[mask].mean() > 0.1 for mask in scene().masks)

@@ -9,14 +9,15 @@ import numpy as np
 import pytest
 from conftest import paper_silhouette
 from PIL import Image
-from upright_shapes import lying_cow, lying_dog
 
 from jeanscv.checks import rule_report
 from jeanscv.errors import JeansError
-from jeanscv.fitter import _upright_survivors, fit, initial_placements, posture_name, tilt_degrees
+from jeanscv.fitter import _upright_survivors, fit, initial_placements
 from jeanscv.garments import JEANS
+from jeanscv.posture import posture_name, tilt_degrees
 from jeanscv.presets import get_preset
-from jeanscv.synthetic import random_creature, silhouette_zoo
+from testkit.synthetic import random_creature, silhouette_zoo
+from testkit.upright_shapes import lying_cow, lying_dog
 
 # Fits of the default preset as it was before the upright plan (main at b493177, seed 0,
 # 100 iterations): winning start, finished starts, vertices to 3 decimals.

@@ -401,7 +401,7 @@ def create_app(config: Config) -> Guard:
 
         def save() -> None:
             with state.folder_lock:
-                engine.write_clicked_output(job, photo, clicks, engine.RenderOptions(), state.backend)
+                engine.save_clicks(job, clicks, state.backend, config.max_pixels)
 
         try:
             await state.pool.run(save)

@@ -4,10 +4,11 @@ Everything the page does to a photo goes through here: decode an upload, the
 automatic result, a result from clicks, the full-resolution downloads, and a folder
 photo's outputs. The HTTP layer (:mod:`.app`) never calls :mod:`jeanscv` itself.
 
-Clicks become silhouettes in :func:`silhouettes_from_clicks` (``ClickSession.segment``
-per object, framed as :func:`jeanscv.api.extract_silhouettes` frames a point's object);
-when the library's ``apply_jeans(..., clicks=...)`` lands, that function and
-:func:`write_folder_outputs` are the places to switch.
+Clicks become silhouettes in :func:`silhouettes_from_clicks`: the photo keeps one
+``ClickSession`` (the library's ``extract_silhouettes(clicks=...)`` makes a new one per
+call, half a second on a 12-MP photo), and each object is segmented and framed as the
+library does it, so the page's result is the command line's. A folder's outputs are made
+by the command line's own worker, which reads the clicks saved beside the photo.
 
 Coordinates sent to and from the page are pixels of the photo as displayed (x right,
 y down, package convention); the interactive preview is a copy whose long side is at
@@ -29,8 +30,10 @@ from PIL import Image
 from jeanscv import api
 from jeanscv.clicks import Clicks, read_clicks, sidecar_path, write_clicks
 from jeanscv.errors import JeansError
-from jeanscv.framing import Framing, frame_mask
-from jeanscv.geometry import mask_box
+from jeanscv.framing import Framing
+from jeanscv.options import JeansOptions
+from jeanscv.runner import encode_picture, report_text
+from jeanscv.silhouettes import box_of
 
 from .. import worker
 from ..discover import Job
@@ -88,8 +91,9 @@ class RenderOptions:
         """What the fits depend on (captions and layout do not)."""
         return (self.garment, self.posture)
 
-    def worker_options(self, backend: str | None) -> worker.Options:
-        return worker.Options(
+    def jeans_options(self, backend: str | None, max_pixels: int = 100_000_000) -> JeansOptions:
+        """The library's options for these (every other one at the command line's default)."""
+        return JeansOptions(
             garment=self.garment,
             posture=self.posture,
             style=self.style,
@@ -97,7 +101,7 @@ class RenderOptions:
             bottom=self.bottom or None,
             side_by_side=self.side_by_side,
             backend=backend,
-            overwrite=True,
+            max_pixels=max_pixels,
         )
 
 
@@ -110,9 +114,9 @@ def garments() -> list[str]:
 
 def default_backend() -> str:
     """The fitting backend the command line would pick on this machine's CPU."""
-    from jeanscv._fast import backend
+    from jeanscv.device import resolve_backend
 
-    return backend(None, "cpu")
+    return resolve_backend(None, "cpu")
 
 
 def warm_up() -> None:
@@ -211,16 +215,6 @@ def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
     return Photo(name, kind, pixels, loaded, (width, height), preview, auto)
 
 
-def open_photo_without_subject(path: Path, name: str, max_pixels: int, reason: str) -> Photo:
-    """A photo the automatic segmentation found nothing in: decoded for clicks only."""
-    loaded = api.load_image(path, max_pixels=max_pixels)
-    pixels = loaded.pixels
-    if pixels.ndim == 2:
-        pixels = np.repeat(pixels[..., None], 3, axis=-1)
-    height, width = pixels.shape[:2]
-    return Photo(name, "photo", pixels, loaded, (width, height), _downscale(pixels, PREVIEW_SIDE), [], reason)
-
-
 def _compact(silhouette):
     """A photo's silhouette with a bool mask (a 12-MP float mask is 48 MB)."""
     if silhouette.mask.dtype != bool:
@@ -229,22 +223,21 @@ def _compact(silhouette):
 
 
 def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
-    """One full-size silhouette per clicked object, in order (the ClickSession adapter)."""
+    """One full-size silhouette per clicked object, in order, as
+    :func:`jeanscv.extraction.extract_silhouettes` makes them, from the photo's own session."""
+    from jeanscv.extraction import _framed
+
     clicks.check(photo.size)
     with photo.lock:
         session = photo.session()
         found = []
         for index, obj in enumerate(clicks.objects):
-            segmentation = session.segment(list(obj.positive), list(obj.negative))
+            segmentation = session.segment(obj.positive, obj.negative)
             if not segmentation.mask.any():
                 raise JeansError(f"object {index + 1}: the clicks give an empty mask")
-            canvas, framing = frame_mask(segmentation.mask)
-            details = {**segmentation.details, "box": list(mask_box(segmentation.mask)), "point": list(obj.positive[0])}
-            found.append(
-                api.Silhouette(
-                    segmentation.mask, canvas, framing, segmentation.method, segmentation.contour, details=details
-                )
-            )
+            silhouette = _framed(segmentation, obj.positive[0])
+            silhouette.details["clicks"] = obj.to_json()
+            found.append(silhouette)
     return found
 
 
@@ -348,7 +341,7 @@ def page_objects(photo: Photo, objects: list) -> list[dict]:
                 "jeans": np.round(silhouette.framing.to_image(fit.vertices), 1).tolist(),
                 "trajectory": np.round(silhouette.framing.to_image(trajectory[steps]), 1).tolist(),
                 "method": silhouette.method,
-                "box": [int(v) for v in api._box_of(silhouette)],
+                "box": [int(v) for v in box_of(silhouette)],
             }
         )
     return entries
@@ -382,11 +375,11 @@ def download(
     job = Job(0, Path(photo.name), photo.name, {"image": Path(output_name(photo, picture_suffix))})
     if kind in ("image", "meme"):
         wanted = options if kind == "meme" else replace(options, top="", bottom="", side_by_side=False)
-        pixels = worker.picture(result, wanted.worker_options(None))
+        pixels = worker.picture(result, wanted.jeans_options(None))
         target = Path(output_name(photo, picture_suffix))
-        return worker._encode(target, pixels, result), target.name
+        return encode_picture(target, pixels, result), target.name
     if kind == "json":
-        return worker.report_json(result, job).encode("utf-8"), output_name(photo, ".json")
+        return report_text(result, job.display, str(job.outputs["image"])).encode("utf-8"), output_name(photo, ".json")
     if kind == "svg":
         polygons = [obj.silhouette.framing.to_image(obj.fit.vertices) for obj in objects]
         contours = [c for obj in objects for c in api.silhouette_contours(obj.silhouette)]
@@ -432,49 +425,25 @@ def saved_clicks(job: Job) -> Clicks | None:
 
 
 def output_stale(job: Job) -> bool:
-    """Whether the folder photo's output is missing, or older than its clicks sidecar."""
-    output = job.outputs["image"]
-    if not output.exists():
-        return True
-    sidecar = sidecar_path(job.path)
-    return sidecar.exists() and sidecar.stat().st_mtime > output.stat().st_mtime
+    """Whether the folder photo's output is missing, or older than its clicks sidecar
+    (the command line's rule: it would redo it)."""
+    return "image" in worker.wanted_outputs(job, JeansOptions(), overwrite=False)
 
 
 def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> str:
-    """Make the folder photo's output as ``jeanscv FOLDER`` does; '' or the failure's reason.
-
-    A photo with a clicks sidecar is made from its clicks (until the command line reads
-    sidecars itself, through this adapter, with the same pixels, fit and encoder).
-    """
-    clicks = saved_clicks(job)
-    if clicks is None:
-        outcome = worker.process(job, worker.Options(backend=backend, overwrite=True, max_pixels=max_pixels))
-        return outcome.error if outcome.status == "failed" else ""
-    try:
-        photo = open_photo(job.path, job.path.name, max_pixels)
-    except JeansError as exc:
-        if "no object found" not in str(exc):
-            return worker.failure_reason(exc)
-        photo = open_photo_without_subject(job.path, job.path.name, max_pixels, str(exc))
-    try:
-        write_clicked_output(job, photo, clicks, RenderOptions(), backend)
-    except Exception as exc:  # noqa: BLE001 - one line for the gallery, as the command line gives
-        return worker.failure_reason(exc)
-    return ""
+    """Make the folder photo's output as ``jeanscv FOLDER`` does (its saved clicks
+    included); '' or the failure's one-line reason."""
+    outcome = worker.process(job, JeansOptions(backend=backend, max_pixels=max_pixels), overwrite=True)
+    return outcome.error if outcome.status == "failed" else ""
 
 
-def write_clicked_output(job: Job, photo: Photo, clicks: Clicks, options: RenderOptions, backend: str | None) -> None:
-    """Write the folder photo's clicks sidecar and its output made from those clicks."""
-    from jeanscv.io.write import atomic_write_bytes
-
-    objects = fitted_objects(photo, clicks, options, backend)
-    result = full_result(photo, objects, options)
-    target = job.outputs["image"]
-    data = worker._encode(target, worker.picture(result, options.worker_options(backend)), result)
-    sidecar = sidecar_path(job.path)
-    if saved_clicks(job) != clicks:
-        write_clicks(sidecar, clicks)
-    atomic_write_bytes(target, data)
+def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) -> None:
+    """Save the folder photo's clicks beside it, then make its output from them as the
+    command line does; JeansError with the reason when that fails."""
+    write_clicks(sidecar_path(job.path), clicks)
+    reason = write_folder_outputs(job, backend, max_pixels)
+    if reason:
+        raise JeansError(reason)
 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:

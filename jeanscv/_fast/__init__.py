@@ -6,14 +6,13 @@ kernels compute the same quantities in float64 with hand-written gradients (see
 Kernels are compiled on first use and cached on disk (numba ``cache=True``), so a
 fresh process loads them instead of compiling.
 
-Which path a fit takes: :func:`backend` (``JEANSCV_BACKEND=torch|fast``, else fast
-on CPU when numba imports).
+Which path a fit takes: :func:`jeanscv.device.resolve_backend` (``JEANSCV_BACKEND=torch|fast``,
+else fast on CPU when numba imports).
 """
 
 from __future__ import annotations
 
 import functools
-import importlib.util
 import math
 import os
 import threading
@@ -21,16 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..device import fast_available
 from ..terms import STROKE_HALF_WIDTH, TERM_NAMES, affine_residual_operator
 
-BACKENDS = ("fast", "torch")
 #: Segments per round cap of a stroke polygon (render.CAP_SEGMENTS).
 CAP_SEGMENTS = 8
-
-
-def available() -> bool:
-    """Whether numba can be imported (checked without importing it)."""
-    return importlib.util.find_spec("numba") is not None
 
 
 def kernels_cached(folder: Path = Path(__file__).parent) -> bool | None:
@@ -44,23 +38,6 @@ def kernels_cached(folder: Path = Path(__file__).parent) -> bool | None:
     if os.environ.get("NUMBA_CACHE_DIR") or not os.access(folder, os.W_OK):
         return None
     return any((folder / "__pycache__").glob("objective.descend-*.nbi"))
-
-
-def backend(requested: str | None = None, device: str = "cpu") -> str:
-    """The fitting backend: ``requested``, else ``$JEANSCV_BACKEND``, else ``fast``
-    when numba is installed; always ``torch`` off the CPU."""
-    choice = requested or os.environ.get("JEANSCV_BACKEND") or ("fast" if available() else "torch")
-    if choice not in BACKENDS:
-        from ..errors import JeansError
-
-        raise JeansError(f"unknown backend {choice!r} (use {' or '.join(BACKENDS)})")
-    if device != "cpu":
-        return "torch"
-    if choice == "fast" and not available():
-        from ..errors import JeansError
-
-        raise JeansError("the fast backend needs numba (pip install numba)")
-    return choice
 
 
 @functools.lru_cache(maxsize=8)
@@ -158,7 +135,7 @@ class Objective:
         return totals, grad, terms
 
     def descend(self, optimizer, target: np.ndarray, steps: int, half_width: float) -> tuple[np.ndarray, np.ndarray]:
-        """``steps`` Adam steps of ``optimizer`` (:class:`jeanscv.fitter.BatchAdam`) on
+        """``steps`` Adam steps of ``optimizer`` (:class:`jeanscv.adam.BatchAdam`) on
         ``target`` in one kernel call (:func:`objective.descend`): ``(totals (k, B), params
         after each step (k, B, N, 2))``; ``k < steps``: at step ``k`` every start diverged."""
         from .objective import descend
@@ -260,11 +237,11 @@ def warm_up() -> None:
     of before the fit. Later calls of the kernels wait for it where they need it.
     """
     global _warming
-    if _warming is not None or not available():
+    if _warming is not None or not fast_available():
         return
 
     def load() -> None:
-        from ..fitter import BatchAdam
+        from ..adam import BatchAdam
         from ..garments import JEANS
 
         square = JEANS.template / 16.0

@@ -24,7 +24,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ..fitter import adam_update
+from ..adam import adam_update
+from ..terms import UPRIGHT_FREE_DEGREES, UPRIGHT_SATURATE_DEGREES
 from .raster import (
     BAND_COLUMNS,
     OUTLINE_POINTS,
@@ -376,8 +377,8 @@ def objective(
         s_total += s_rows[y, size]
     margin = half_width + 2.0
     low, high = -margin, size + margin
-    free = math.cos(math.radians(20.0))
-    saturated = free - math.cos(math.radians(60.0))
+    free = math.cos(math.radians(UPRIGHT_FREE_DEGREES))
+    saturated = free - math.cos(math.radians(UPRIGHT_SATURATE_DEGREES))
 
     finite = np.ones(batch, np.bool_)
     rows_limit = 1
@@ -779,7 +780,7 @@ def descend(
     """The fit's Adam steps on one target in one call: a step crosses into Python once per
     stretch of steps on the same target instead of a dozen times (about 0.1 ms a step, a
     tenth of a default fit). Adam steps on normalised ``params`` ``(B, N, 2)`` (and its
-    moments, in place) by :func:`jeanscv.fitter.adam_update`, one per
+    moments, in place) by :func:`jeanscv.adam.adam_update`, one per
     entry of ``step_sizes`` and ``bias2`` (the step's ``lr / (1 - beta1^t)`` and ``1 - beta2^t``).
 
     Each step evaluates :func:`objective` at ``params * C`` on the ``(C, C)``

@@ -101,6 +101,15 @@ def format_for_path(path: str | Path) -> str:
         ) from None
 
 
+def on_white(image: np.ndarray) -> np.ndarray:
+    """RGB(A) -> RGB, transparent parts over white (for JPEG and GIF frames)."""
+    if image.ndim == 3 and image.shape[2] == 4:
+        alpha = image[..., 3:].astype(np.float32) / 255.0
+        rgb = image[..., :3].astype(np.float32) * alpha + 255.0 * (1.0 - alpha)
+        return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+    return image
+
+
 def encode_image(
     pixels: np.ndarray,
     fmt: str,

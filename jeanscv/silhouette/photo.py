@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from jeanscv.errors import JeansError
+from jeanscv.options import SILHOUETTE_METHODS
 
 from .masks import (
     FULL_FRACTION,
@@ -53,7 +54,8 @@ from .masks import (
 )
 from .scene import Scene, spectral_saliency
 
-METHODS = ("auto", "alpha", "threshold", "grabcut", "mask")
+#: :func:`segment`'s methods: the named ones, and ``mask`` (a given mask, cleaned).
+METHODS = (*SILHOUETTE_METHODS, "mask")
 
 _COARSE_ITERATIONS = 5  # GrabCut iterations of the first pass
 # auto's hypotheses are cut on the scene's small copy (scene.HYPOTHESIS_SIZE) with fewer

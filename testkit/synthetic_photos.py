@@ -478,10 +478,10 @@ class MultiPhoto:
 
 def two_objects(seed: int = 2023, width: int = 800, height: int = 500) -> MultiPhoto:
     """A dog and its owner: two separate objects side by side on grass, a person
-    (the package's synthetic ``person``, coffee-textured) on the left and a dog (its
+    (the zoo's ``person``, coffee-textured) on the left and a dog (its
     ``dog``, cat fur) on the right. Needs the coffee, chelsea and grass textures
     (bundled with scikit-image)."""
-    from jeanscv.synthetic import ZOO
+    from testkit.synthetic import ZOO
 
     rng = np.random.default_rng([seed, 11])
     owner = _place(ZOO["person"]() >= 0.5, height, width, (0.3, 0.5), 0.85, False)

@@ -1,7 +1,7 @@
 """Nine silhouettes of things that stand, sit or lie, for measuring whether jeans hang
 upright on them (tests and ``bench/upright.py``; not part of the package).
 
-Each is drawn with the zoo's pens (:mod:`jeanscv.synthetic`) in a 256x192 picture and
+Each is drawn with the zoo's pens (:mod:`testkit.synthetic`) in a 256x192 picture and
 framed like a photo's mask (:func:`jeanscv.framing.frame_mask`), so wide things sit in
 the middle of the canvas with empty bands above and below, as in a fitted photo.
 """
@@ -12,8 +12,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from jeanscv import synthetic
 from jeanscv.framing import frame_mask
+from testkit import synthetic
 
 _SCALE = 0.25  # the shapes are written in pixels of a 1024x768 picture
 

@@ -1,0 +1,125 @@
+"""Every per-input option, declared once: :class:`JeansOptions`, and the lists of allowed
+values that the command line's choices are made from.
+
+The command line, :func:`jeanscv.pipeline.apply_jeans` and the Dask runner
+(:mod:`jeanscv.distributed`) all build one :class:`JeansOptions` and pass it along.
+A field is one line: its name, type and default, and for a fixed set of values its
+``choices`` (checked when the options are made). Cheap to import (no numpy): the
+command's ``--help`` reads the choices from here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from .device import BACKENDS
+from .errors import JeansError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .clicks import Clicks
+    from .garments import Garment
+
+#: What an input is: ``auto`` tells silhouette drawings (and SVGs) from photos.
+KINDS = ("auto", "silhouette", "photo")
+#: ``one``: the main subject; ``all``: every separate object, each with its own garment.
+OBJECTS = ("one", "all")
+#: How the garment is painted on a photo: a denim texture, or the paper's flat blue.
+STYLES = ("denim", "flat")
+#: ``upright``: the garment hangs down unless no upright fit passes the rule checks;
+#: ``any``: every posture competes.
+POSTURES = ("upright", "any")
+#: The built-in ways to cut the object out of a photo, by name (plugins add more;
+#: ``mask``, a given mask, is not one that can be named).
+SILHOUETTE_METHODS = ("auto", "alpha", "threshold", "grabcut")
+
+
+def _choice(default: str, choices: tuple[str, ...], label: str) -> Any:
+    """A field whose value must be one of ``choices`` (``label`` names it in the error)."""
+    return field(default=default, metadata={"choices": choices, "label": label})
+
+
+@dataclass(frozen=True)
+class JeansOptions:
+    """How to put jeans on one input: fitting, silhouette, look and decoding.
+
+    Fitting: ``garment`` (a name, a ``.toml`` path or a :class:`~jeanscv.garments.Garment`),
+    ``preset``, ``posture``, ``iterations``, ``seed``, ``starts`` (None: the preset's),
+    ``device`` (``cpu``, ``cuda``, ``auto``), ``backend`` (``fast``, ``torch``; None:
+    :func:`jeanscv.device.resolve_backend` chooses).
+
+    Silhouette: ``kind``, ``silhouette_method`` (a built-in or a plugin's name),
+    ``threshold`` and ``rect`` (for the ``threshold`` and ``grabcut`` methods), ``mask``
+    (an ``(H, W)`` array or an image file: the object, instead of segmenting), ``objects``;
+    clicks that fix the subject (pixels of the photo as displayed; see
+    :func:`jeanscv.extraction.extract_silhouettes`): ``points`` and ``background_points``
+    (one object's positive and negative clicks) and ``clicks`` (several objects': a
+    :class:`~jeanscv.clicks.Clicks` or a clicks file).
+
+    Look: ``style``, ``clip`` (paint only on the object); ``top`` and ``bottom``
+    captions, ``side_by_side`` and ``gif_frames`` shape the command's pictures.
+
+    Decoding: ``max_pixels`` (larger images are refused), ``raw_half_size`` (RAW files
+    at half size, faster).
+    """
+
+    # Fitting.
+    garment: str | os.PathLike | Garment = "jeans"
+    preset: str = "default"
+    posture: str = _choice("upright", POSTURES, "posture")
+    iterations: int = 100
+    seed: int = 0
+    starts: int | None = None
+    device: str = "cpu"
+    backend: str | None = None
+    # Silhouette.
+    kind: str = _choice("auto", KINDS, "input kind")
+    silhouette_method: str = "auto"
+    threshold: float | None = None
+    rect: tuple[int, int, int, int] | None = None
+    mask: np.ndarray | str | os.PathLike | None = None
+    objects: str = _choice("one", OBJECTS, "objects")
+    points: tuple[tuple[float, float], ...] = ()
+    background_points: tuple[tuple[float, float], ...] = ()
+    clicks: Clicks | str | os.PathLike | None = None
+    # Look.
+    style: str = _choice("denim", STYLES, "style")
+    clip: bool = True
+    top: str | None = None
+    bottom: str | None = None
+    side_by_side: bool = False
+    gif_frames: int = 50
+    # Decoding.
+    max_pixels: int = 100_000_000
+    raw_half_size: bool = False
+
+    def __post_init__(self) -> None:
+        # Lists and other sequences of points are kept as a tuple, so options stay immutable.
+        object.__setattr__(self, "points", tuple(self.points or ()))
+        object.__setattr__(self, "background_points", tuple(self.background_points or ()))
+        for option in dataclasses.fields(self):
+            choices = option.metadata.get("choices")
+            value = getattr(self, option.name)
+            if choices is not None and value not in choices:
+                label = option.metadata["label"]
+                raise JeansError(f"unknown {label} {value!r} (use {', '.join(choices)})")
+        if self.backend is not None and self.backend not in BACKENDS:
+            raise JeansError(f"unknown backend {self.backend!r} (use {' or '.join(BACKENDS)})")
+        if self.iterations < 0:
+            raise JeansError("iterations must be >= 0")
+
+    def replace(self, **changes: Any) -> JeansOptions:
+        """A copy with ``changes`` (option names as keywords); an unknown name is a TypeError."""
+        return dataclasses.replace(self, **changes) if changes else self
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Every option's name, in declaration order."""
+        return tuple(option.name for option in dataclasses.fields(cls))
+
+
+__all__ = ["JeansOptions", "KINDS", "OBJECTS", "POSTURES", "SILHOUETTE_METHODS", "STYLES"]

@@ -1,0 +1,269 @@
+"""Clicks that fix the subject: the click session on exact synthetic masks, the clicks
+file, the API and the command line (``--point``, ``--background-point``, ``--clicks`` and
+the clicks saved beside a photo)."""
+
+from __future__ import annotations
+
+import json
+import os
+from functools import cache
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from jeanscv.api import apply_jeans, extract_silhouettes
+from jeanscv.clicks import Clicks, ObjectClicks, loads_clicks, read_clicks, sidecar_path, write_clicks
+from jeanscv.errors import JeansError
+from jeanscv.silhouette.interactive import ClickSession
+
+FIT = dict(iterations=30, starts=2)
+CLI_FIT = ("--iterations", "30", "--starts", "2")
+BODY_CLICK, HEAD_CLICK, DISC_CLICK = (90.5, 130.5), (160.5, 130.5), (260.5, 120.5)
+
+
+@cache
+def figure() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A 320x240 photo: a red body with a blue head attached, and a green disc apart,
+    on grey noise; returns (image, body, head, disc) with the exact masks."""
+    rng = np.random.default_rng(0)
+    image = np.clip(rng.normal(120, 6, (240, 320, 3)), 0, 255).astype(np.uint8)
+    body = np.zeros((240, 320), bool)
+    body[80:180, 40:140] = True
+    head = np.zeros((240, 320), bool)
+    head[100:160, 140:180] = True
+    disc = np.zeros((240, 320), np.uint8)
+    cv2.circle(disc, (260, 120), 30, 1, -1)
+    disc = disc.astype(bool)
+    image[body], image[head], image[disc] = (200, 40, 40), (40, 60, 200), (40, 180, 60)
+    return image, body, head, disc
+
+
+def share(mask: np.ndarray, part: np.ndarray) -> float:
+    return float((mask & part).sum() / part.sum())
+
+
+@cache
+def session() -> ClickSession:
+    return ClickSession(figure()[0])
+
+
+# ------------------------------------------------------------------ the click session
+
+
+def test_one_click_takes_the_thing_under_it_only():
+    _, body, head, disc = figure()
+    mask = session().segment([BODY_CLICK]).mask
+    assert share(mask, body) > 0.99 and share(mask, head) > 0.99
+    assert share(mask, disc) == 0 and mask.sum() < 1.02 * (body | head).sum()
+
+
+def test_a_positive_click_on_a_missed_part_adds_it():
+    _, body, head, disc = figure()
+    mask = session().segment([BODY_CLICK, DISC_CLICK]).mask
+    assert share(mask, disc) > 0.98 and share(mask, body) > 0.99 and share(mask, head) > 0.99
+
+
+def test_a_negative_click_on_a_wrongly_taken_region_removes_it():
+    _, body, head, disc = figure()
+    mask = session().segment([BODY_CLICK], [HEAD_CLICK]).mask
+    assert share(mask, head) < 0.02 and share(mask, body) > 0.99 and share(mask, disc) == 0
+
+
+def test_every_positive_click_is_in_and_no_negative_one():
+    image = figure()[0]
+    rng = np.random.default_rng(1)
+    for _ in range(4):
+        positive = [tuple(rng.uniform(0, 320, 1).tolist() + rng.uniform(0, 240, 1).tolist()) for _ in range(3)]
+        negative = [tuple(rng.uniform(0, 320, 1).tolist() + rng.uniform(0, 240, 1).tolist()) for _ in range(2)]
+        mask = session().segment(positive, negative).mask
+        assert all(mask[int(y), int(x)] for x, y in positive)
+        assert not any(mask[int(y), int(x)] for x, y in negative)
+    assert image.shape[:2] == mask.shape
+
+
+def test_the_same_clicks_give_the_same_mask():
+    image = figure()[0]
+    clicks = ([BODY_CLICK, DISC_CLICK], [HEAD_CLICK])
+    first = ClickSession(image).segment(*clicks).mask
+    again = ClickSession(image).segment(*clicks).mask
+    # A session that saw other clicks first gives the same answer (no hidden state).
+    warm = session()
+    warm.segment([DISC_CLICK], [BODY_CLICK])
+    assert np.array_equal(first, again) and np.array_equal(first, warm.segment(*clicks).mask)
+
+
+def test_session_refuses_clicks_it_cannot_use():
+    with pytest.raises(JeansError, match="at least one positive click"):
+        session().segment([], [HEAD_CLICK])
+    with pytest.raises(JeansError, match=r"click \(320, 5\) is outside the 320x240 image"):
+        session().segment([(320, 5)])
+    with pytest.raises(JeansError, match="on top of a positive one"):
+        session().segment([BODY_CLICK], [(90.9, 130.1)])
+
+
+# ------------------------------------------------------------------ the clicks file
+
+
+def test_clicks_file_round_trip(tmp_path):
+    clicks = Clicks((ObjectClicks((BODY_CLICK,), (HEAD_CLICK,)), ObjectClicks((DISC_CLICK,))), (320, 240))
+    path = tmp_path / "figure.clicks.json"
+    write_clicks(path, clicks)
+    assert read_clicks(path) == clicks
+    data = json.loads(path.read_text())
+    assert data == {
+        "format": "jeanscv-clicks",
+        "version": 1,
+        "image": {"width": 320, "height": 240},
+        "objects": [
+            {"positive": [list(BODY_CLICK)], "negative": [list(HEAD_CLICK)]},
+            {"positive": [list(DISC_CLICK)], "negative": []},
+        ],
+    }
+    assert sidecar_path(tmp_path / "cat.photo.jpg") == tmp_path / "cat.photo.clicks.json"
+
+
+@pytest.mark.parametrize(
+    "text, reason",
+    [
+        ("{not json", "not valid JSON"),
+        ("[1, 2]", "not a clicks file"),
+        ('{"format": "jeanscv-clicks", "version": 2, "objects": []}', "version 2 is not supported"),
+        ('{"format": "jeanscv-clicks", "version": 1, "objects": []}', '"objects" must be a non-empty list'),
+        ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [["a", 1]]}]}', "two numbers"),
+        ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[1, 2, 3]]}]}', "two numbers"),
+        ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"negative": [[1, 2]]}]}', "one positive click"),
+        (
+            '{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[1, 2]], "negative": [[1.5, 2.5]]}]}',
+            "on top of a positive one",
+        ),
+        ('{"format": "jeanscv-clicks", "version": 1, "image": {"width": -3, "height": 2}, "objects": []}', "positive"),
+    ],
+)
+def test_bad_clicks_files_say_why(text, reason):
+    with pytest.raises(JeansError, match=reason):
+        loads_clicks(text)
+
+
+def test_clicks_that_do_not_fit_the_image_say_why():
+    clicks = Clicks.single([BODY_CLICK], image_size=(640, 480))
+    with pytest.raises(JeansError, match="made on a 640x480 image, this one is 320x240"):
+        clicks.check((320, 240))
+    with pytest.raises(JeansError, match=r"object 2: click \(400, 5\) is outside the 320x240 image"):
+        Clicks((ObjectClicks((BODY_CLICK,)), ObjectClicks(((400, 5),)))).check((320, 240))
+
+
+# ------------------------------------------------------------------ API
+
+
+def test_extract_silhouettes_one_object_per_click_set():
+    image, body, head, disc = figure()
+    first, second = extract_silhouettes(
+        image, clicks=[{"positive": [BODY_CLICK], "negative": [HEAD_CLICK]}, {"positive": [DISC_CLICK]}]
+    )
+    assert first.method == second.method == "clicks"
+    assert share(first.mask, body) > 0.99 and share(first.mask, head) < 0.02
+    assert share(second.mask, disc) > 0.98 and share(second.mask, body) == 0
+    assert first.details["clicks"] == {"positive": [list(BODY_CLICK)], "negative": [list(HEAD_CLICK)]}
+    (only,) = extract_silhouettes(image, points=[DISC_CLICK])
+    assert share(only.mask, disc) > 0.98 and only.details["point"] == list(DISC_CLICK)
+
+
+def test_apply_jeans_records_the_clicks_in_the_report():
+    image, body, head, disc = figure()
+    result = apply_jeans(image, points=[DISC_CLICK], **FIT)
+    report = result.report()
+    assert report["clicks"] == {"objects": [{"positive": [list(DISC_CLICK)], "negative": []}]}
+    changed = np.any(result.image != image, axis=-1)
+    assert changed[disc].mean() > 0.1 and not changed[body | head].any()
+
+
+# ------------------------------------------------------------------ command line
+
+
+@pytest.fixture
+def figure_png(tmp_path):
+    path = tmp_path / "figure.png"
+    Image.fromarray(figure()[0]).save(path)
+    return path
+
+
+def test_cli_points_and_a_clicks_file_written_by_the_api_give_the_same_output(figure_png, run_cli, tmp_path):
+    result = run_cli(figure_png, "--point", "90.5,130.5", "--background-point", "160.5,130.5", "--json", "-q", *CLI_FIT)
+    assert result.exit_code == 0, result.stderr
+    output = figure_png.with_name("figure.jeans.png")
+    by_points = output.read_bytes()
+    report = json.loads(figure_png.with_name("figure.jeans.json").read_text())
+    assert report["clicks"] == {"objects": [{"positive": [[90.5, 130.5]], "negative": [[160.5, 130.5]]}]}
+
+    clicks_path = tmp_path / "saved.json"
+    write_clicks(clicks_path, Clicks.single([BODY_CLICK], [HEAD_CLICK], image_size=(320, 240)))
+    result = run_cli(figure_png, "--clicks", clicks_path, "--json", "-q", "--overwrite", *CLI_FIT)
+    assert result.exit_code == 0, result.stderr
+    assert output.read_bytes() == by_points
+    api = apply_jeans(figure_png, clicks=read_clicks(clicks_path), **FIT)
+    assert (
+        json.loads(figure_png.with_name("figure.jeans.json").read_text())["vertices_image"]
+        == (api.report()["vertices_image"])
+    )
+
+
+def test_clicks_saved_beside_a_photo_are_used_and_make_its_output_stale(tmp_path, run_cli):
+    folder = tmp_path / "pets"
+    folder.mkdir()
+    Image.fromarray(figure()[0]).save(folder / "a.png")
+    Image.fromarray(figure()[0]).save(folder / "b.png")
+    result = run_cli(folder, "--json", "-q", "-j", "1", *CLI_FIT)
+    assert result.exit_code == 0, result.stderr
+    before = {name: (folder / f"{name}.jeans.png").read_bytes() for name in "ab"}
+    write_clicks(sidecar_path(folder / "a.png"), Clicks.single([DISC_CLICK], image_size=(320, 240)))
+    # The saved clicks are newer than a's output: a is redone, b is skipped.
+    stamp = os.stat(folder / "a.jeans.png").st_mtime + 5
+    os.utime(sidecar_path(folder / "a.png"), (stamp, stamp))
+    result = run_cli(folder, "--json", "-j", "1", *CLI_FIT)
+    assert result.exit_code == 0, result.stderr
+    assert (folder / "b.jeans.png").read_bytes() == before["b"]
+    report = json.loads((folder / "a.jeans.json").read_text())
+    assert report["clicks"]["objects"][0]["positive"] == [list(DISC_CLICK)]
+    _, body, head, disc = figure()
+    changed = np.any(np.asarray(Image.open(folder / "a.jeans.png"))[..., :3] != figure()[0], axis=-1)
+    assert changed[disc].mean() > 0.1 and not changed[body | head].any()
+
+
+@pytest.mark.parametrize(
+    "content, reason",
+    [
+        ("{nope", "clicks file figure.clicks.json: clicks file is not valid JSON"),
+        ('{"format": "jeanscv-clicks", "version": 9, "objects": []}', "version 9 is not supported"),
+        (
+            '{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[900, 5]]}]}',
+            "click (900, 5) is outside the 320x240 image",
+        ),
+        (
+            '{"format": "jeanscv-clicks", "version": 1, "image": {"width": 100, "height": 100},'
+            ' "objects": [{"positive": [[9, 5]]}]}',
+            "made on a 100x100 image, this one is 320x240",
+        ),
+    ],
+)
+def test_a_bad_saved_clicks_file_fails_that_photo_only(tmp_path, run_cli, content, reason):
+    Image.fromarray(figure()[0]).save(tmp_path / "figure.png")
+    Image.fromarray(figure()[0]).save(tmp_path / "other.png")
+    sidecar_path(tmp_path / "figure.png").write_text(content)
+    result = run_cli(tmp_path, "-q", "-j", "1", *CLI_FIT)
+    assert result.exit_code == 1
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(f"jeanscv: {tmp_path / 'figure.png'}: ") and reason in line
+    assert not (tmp_path / "figure.jeans.png").exists() and (tmp_path / "other.jeans.png").exists()
+
+
+def test_cli_click_options_need_one_input_and_a_positive_click(figure_png, run_cli, tmp_path):
+    result = run_cli(figure_png, "--background-point", "5,5")
+    assert result.exit_code == 2 and "--background-point needs a --point" in result.stderr
+    other = tmp_path / "other.png"
+    other.write_bytes(figure_png.read_bytes())
+    result = run_cli(figure_png, other, "--clicks", tmp_path / "x.json")
+    assert result.exit_code == 2 and "--clicks needs exactly one input image" in result.stderr
+    result = run_cli(figure_png, "--point", "90.5,130.5", "--background-point", "90.5,130.5", *CLI_FIT)
+    assert result.exit_code == 1 and "is on top of a positive one" in result.stderr

@@ -1,0 +1,86 @@
+"""Clicks on real photographs against reference masks (``../shared/real_photos``;
+skipped when the folder is absent), with the standard simulated user
+(:func:`jeanscv.silhouette.interactive.simulated_click`).
+
+The floors sit about 0.05 under what the click session reaches today after one and
+after three clicks (``python bench/clicks.py`` prints the table): they catch
+regressions, they are not targets.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jeanscv.io.image import load_image
+from jeanscv.silhouette.interactive import ClickSession, simulated_click
+from testkit.real_photo_set import photo_paths, reference_mask
+from testkit.synthetic_photos import iou
+
+# IoU after one and three clicks, 2026-11-25: 0002-01 0.88 0.95, 0003 0.90 0.91, bike
+# 0.48 0.68, boat 0.78 0.83, girl 0.60 0.73, hockey 0.00 0.14, horse 0.91 0.92, im_01
+# 0.76 0.70, im_14 0.42 0.46, im_21 0.86 0.89, im_27 0.56 0.57, lamp2_meitu_1 0.89 0.89,
+# long 0.19 0.51, rifle1 0.65 0.74, rifle2 0.59 0.71, sailboat3 0.63 0.87, vangogh
+# 0.74 0.89, whisk 0.85 0.89; means 0.650 and 0.738.
+FLOORS = {
+    "0002-01": (0.83, 0.90),
+    "0003": (0.85, 0.86),
+    "bike": (0.42, 0.63),
+    "boat": (0.73, 0.77),
+    "girl": (0.54, 0.68),
+    "hockey": (0.0, 0.08),
+    "horse": (0.85, 0.87),
+    "im_01": (0.71, 0.64),
+    "im_14": (0.37, 0.40),
+    "im_21": (0.81, 0.83),
+    "im_27": (0.50, 0.52),
+    "lamp2_meitu_1": (0.84, 0.83),
+    "long": (0.14, 0.45),
+    "rifle1": (0.60, 0.68),
+    "rifle2": (0.54, 0.66),
+    "sailboat3": (0.58, 0.82),
+    "vangogh": (0.69, 0.84),
+    "whisk": (0.80, 0.83),
+}
+MEAN_FLOORS = (0.60, 0.70)
+
+PHOTOS = photo_paths()
+pytestmark = pytest.mark.skipif(not PHOTOS, reason="../shared/real_photos is absent")
+
+
+@pytest.fixture(scope="module")
+def clicked() -> dict[str, tuple[float, float]]:
+    """Per photo: IoU with the reference after one and after three simulated clicks."""
+    results = {}
+    for path in PHOTOS:
+        reference = reference_mask(path)
+        session = ClickSession(np.ascontiguousarray(load_image(path).pixels[..., :3]))
+        positive, negative, predicted, scores = [], [], None, []
+        for _ in range(3):
+            sign, point = simulated_click(reference, predicted)
+            (positive if sign else negative).append(point)
+            predicted = session.segment(positive, negative).mask
+            assert all(predicted[int(y), int(x)] for x, y in positive)
+            assert not any(predicted[int(y), int(x)] for x, y in negative)
+            scores.append(iou(predicted, reference))
+        results[path.stem] = scores[0], scores[2]
+    return results
+
+
+def test_every_shared_photo_has_floors():
+    assert {path.stem for path in PHOTOS} <= set(FLOORS)
+
+
+@pytest.mark.parametrize("stem", sorted(FLOORS))
+def test_clicks_reach_the_floor(clicked, stem):
+    if stem not in clicked:
+        pytest.skip(f"{stem} is not in ../shared/real_photos")
+    one, three = clicked[stem]
+    floor_one, floor_three = FLOORS[stem]
+    assert one >= floor_one, f"{stem}: IoU after one click {one:.3f} < {floor_one}"
+    assert three >= floor_three, f"{stem}: IoU after three clicks {three:.3f} < {floor_three}"
+
+
+def test_mean_after_one_and_three_clicks(clicked):
+    ones, threes = zip(*clicked.values())
+    assert np.mean(ones) >= MEAN_FLOORS[0] and np.mean(threes) >= MEAN_FLOORS[1]
