@@ -15,6 +15,10 @@ pair overlaps are sums over the flagged rows' overlaps (the other strokes' alpha
 from their bands), which are listed, and the gradient's corrections to the value a
 lone stroke's cell has are made over that list. Everything costs O(band cells +
 overlaps), not O(canvas).
+
+One topic in about 850 lines: the kernels below call one another inside numba and are
+compiled and cached together (``cache=True`` keys on this file), so they stay in one
+module; the rasterizer they share lives in ``raster.py``.
 """
 
 from __future__ import annotations

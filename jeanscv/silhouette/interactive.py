@@ -60,6 +60,9 @@ _CUT_SIZE = 160
 #: Weight of the click's relative depth against agreement when the first click chooses.
 _DEPTH_WEIGHT = 0.5
 
+#: Click sequences a session remembers (a mask of the working copy each, ~0.2 MB).
+_CACHED_SEQUENCES = 64
+
 Point = tuple[float, float]
 
 
@@ -82,10 +85,8 @@ class ClickSession:
         self.size = shape_for(self.shape, working_size)  # (w, h) of the working copy
         self.rgb = downscale(rgb, self.size)
         scene_rgb = downscale(rgb, shape_for(self.shape, SCENE_SIZE))
-        self._scene = Scene(scene_rgb)
-        self._details: dict = {}
         try:
-            found = hypotheses(scene_rgb, self._scene, self._details)
+            found = hypotheses(scene_rgb, Scene(scene_rgb), {})
             self._hypotheses = {
                 name: resize(mask.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
                 for name, mask in found.coarse.items()
@@ -114,11 +115,9 @@ class ClickSession:
         """
         if not positive:
             raise JeansError("an object needs at least one positive click")
-        pos = [self._to_working(p) for p in positive]
-        neg = [self._to_working(p) for p in negative]
-        if set(pos) & set(neg):
+        if {_pixel(p) for p in positive} & {_pixel(p) for p in negative}:
             raise JeansError("a negative click is on top of a positive one")
-        working = self._working_mask(pos, neg)
+        working = self.working_mask(positive, negative)
         height, width = self.shape
         full = resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR) >= 128
         for x, y in positive:  # the clicked pixels themselves, whatever the upsampling did
@@ -135,23 +134,29 @@ class ClickSession:
         return Segmentation(mask=full, method="clicks", contour=contour, details=details)
 
     def working_mask(self, positive: Sequence[Point], negative: Sequence[Point] = ()) -> np.ndarray:
-        """The mask at working resolution (``(h, w)`` bool), for previews."""
+        """The mask at working resolution (``(h, w)`` bool, a view of the session's own),
+        for previews. A negative click that lands on a positive one's working pixel
+        (clicks a few pixels apart on a large photo) is left to :meth:`segment`'s full
+        resolution."""
+        if not positive:
+            raise JeansError("an object needs at least one positive click")
         pos = [self._to_working(p) for p in positive]
-        neg = [self._to_working(p) for p in negative]
-        return self._working_mask(pos, neg).copy()
+        neg = [q for q in (self._to_working(p) for p in negative) if q not in pos]
+        mask = self._after(tuple(("+", p) for p in pos) + tuple(("-", p) for p in neg))
+        mask.flags.writeable = False
+        return mask
 
     # ------------------------------------------------------------------ steps
-    def _working_mask(self, pos: list, neg: list) -> np.ndarray:
-        clicks = tuple(("+", p) for p in pos) + tuple(("-", p) for p in neg)
-        return self._after(clicks)
-
     def _after(self, clicks: tuple) -> np.ndarray:
+        """The mask after ``clicks`` ((sign, working pixel) pairs, in order), remembered."""
         if clicks in self._cache:
             return self._cache[clicks]
         if len(clicks) == 1:
             mask = self._first(clicks[0][1])
         else:
             mask = self._step(self._after(clicks[:-1]), clicks)
+        if len(self._cache) >= _CACHED_SEQUENCES:
+            del self._cache[next(iter(self._cache))]  # the oldest: a session stays bounded
         self._cache[clicks] = mask
         return mask
 
@@ -294,6 +299,10 @@ def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
     for x, y in neg:
         filled[y, x] = False
     return filled
+
+
+def _pixel(point: Point) -> tuple[int, int]:
+    return int(np.floor(point[0])), int(np.floor(point[1]))
 
 
 def _depth(region: np.ndarray, x: int, y: int) -> float:
