@@ -160,7 +160,8 @@ class Photo:
         """Memory this photo holds (what the store's byte cap counts)."""
         total = self.preview.nbytes + (0 if self.pixels is None else self.pixels.nbytes)
         masks = {id(s.mask): s.mask.nbytes for s in self.auto}
-        masks |= {id(o.silhouette.mask): o.silhouette.mask.nbytes for fit in self.fits.values() for o in fit}
+        fits = tuple(self.fits.values())  # a snapshot: another thread may add one
+        masks |= {id(o.silhouette.mask): o.silhouette.mask.nbytes for fit in fits for o in fit}
         total += sum(masks.values())
         if self._session is not None:
             total += self.pixels.nbytes // 8  # working copies and cached masks
@@ -216,9 +217,11 @@ def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
 
 
 def _compact(silhouette):
-    """A photo's silhouette with a bool mask (a 12-MP float mask is 48 MB)."""
-    if silhouette.mask.dtype != bool:
-        silhouette = replace(silhouette, mask=np.asarray(silhouette.mask) >= 0.5)
+    """A photo's silhouette with a bool mask when its mask holds only 0 and 1 (a 12-MP
+    float mask is 48 MB); a soft one (a cut-out's alpha) is kept as it is."""
+    mask = np.asarray(silhouette.mask)
+    if mask.dtype != bool and np.count_nonzero((mask != 0) & (mask != 1)) == 0:
+        silhouette = replace(silhouette, mask=mask >= 0.5)
     return silhouette
 
 
