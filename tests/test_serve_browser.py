@@ -11,7 +11,6 @@ from __future__ import annotations
 import base64
 import json
 import os
-import socket
 import threading
 import time
 from pathlib import Path
@@ -22,6 +21,7 @@ import pytest
 from PIL import Image
 from test_objects import inside_point, share_on
 from test_serve import png_bytes
+from test_serve_cli import free_port
 
 from testkit.synthetic_photos import two_objects
 
@@ -40,12 +40,6 @@ def _browser_missing() -> str:
 
 if _browser_missing() and not os.environ.get("CI"):
     pytest.skip(_browser_missing(), allow_module_level=True)
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 @pytest.fixture

@@ -5,15 +5,22 @@ from __future__ import annotations
 
 import http.client
 import signal
+import socket
 import subprocess
 import sys
 import time
 
 import pytest
 from test_cli import _env
-from test_serve_browser import free_port
 
 pytest.importorskip("uvicorn")
+
+
+def free_port() -> int:
+    """A port free on 127.0.0.1 just now."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 def test_serve_help_does_not_import_the_server_or_the_library():
