@@ -1,9 +1,9 @@
 """How many clicks a person needs: the standard simulated-click protocol on photos with masks.
 
-    python bench/clicks.py                       # ../shared/real_photos
-    python bench/clicks.py FOLDER [FOLDER ...]   # any folders of NAME.jpg + NAME.mask.png
-    python bench/clicks.py --megapixels 12       # photos upscaled to 12 MP (click latency)
-    python bench/clicks.py --sheet docs/clicks.jpg
+    python -m bench.clicks                       # ../shared/real_photos
+    python -m bench.clicks FOLDER [FOLDER ...]   # any folders of NAME.jpg + NAME.mask.png
+    python -m bench.clicks --megapixels 12       # photos upscaled to 12 MP (click latency)
+    python -m bench.clicks --sheet docs/clicks.jpg
 
 The protocol (Xu et al. 2016; RITM, Sofiiuk et al. 2022): the first click at the
 interior point of the reference mask farthest from its boundary (the image border counts

@@ -43,7 +43,7 @@ _SEED_FRACTION = 0.012
 #: Superpixel size, as a fraction of the working copy's long side.
 _REGION_FRACTION = 0.02
 #: Lab steps between neighbouring superpixels below this cost nothing (noise, texture).
-_STEP_FLOOR = 2.0
+_STEP_FLOOR = 4.0
 #: Background border superpixels nearer the click than this many times its depth do not
 #: stand for the background (the missed part may leave the frame there).
 _ANCHOR_REACH = 1.5
