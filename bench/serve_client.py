@@ -96,6 +96,14 @@ class Server:
         self.stderr.seek(0)
         return self.stderr.read()
 
+    def remove(self) -> None:
+        """Remove the bench's own temporary folder and log (after :meth:`stop`)."""
+        import shutil
+
+        self.stderr.close()
+        shutil.rmtree(self.tmp, ignore_errors=True)
+        Path(self.stderr.name).unlink(missing_ok=True)
+
     def stop(self) -> tuple[int, float]:
         """Ctrl-C; (exit status, seconds to stop)."""
         began = time.monotonic()

@@ -117,6 +117,7 @@ def main() -> None:
     finally:
         code, seconds = server.stop()
         print(f"Ctrl-C: exit status {code} in {seconds:.1f} s; temporary files left: {len(server.leftovers())}")
+        server.remove()
 
 
 if __name__ == "__main__":

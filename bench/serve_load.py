@@ -202,6 +202,7 @@ def main() -> None:
     print(f"Ctrl-C: exit status {code} in {stop_seconds:.1f} s")
     for failure in failures[:10]:
         print("FAILED", failure)
+    server.remove()
     ok = not failures and high_water < MEMORY_LIMIT and not running_leftovers and not after and code == 0
     print("PASS" if ok else "FAIL")
     raise SystemExit(0 if ok else 1)

@@ -8,7 +8,9 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import pytest
 from test_cli import _env
@@ -59,6 +61,7 @@ def test_warning_when_not_on_loopback(monkeypatch, capsys, host, warned):
 
     seen = {}
     monkeypatch.setattr(uvicorn.Server, "run", lambda self: seen.update(host=self.config.host))
+    folders = set(Path(tempfile.gettempdir()).glob("jeanscv-serve-*"))
     code = run_server(
         folder=None,
         host=host,
@@ -72,6 +75,7 @@ def test_warning_when_not_on_loopback(monkeypatch, capsys, host, warned):
     )
     assert code == 0 and seen["host"] == host
     assert ("WARNING: listening on" in capsys.readouterr().err) is warned
+    assert set(Path(tempfile.gettempdir()).glob("jeanscv-serve-*")) == folders  # made only by a started server
 
 
 def test_ctrl_c_stops_the_server_cleanly():

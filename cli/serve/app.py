@@ -88,13 +88,17 @@ class State:
         self.photos = Store(config.store_bytes)
         self.results = Store(max(config.store_bytes // 4, 64 << 20))
         self.pool = Pool(config.workers, config.queue)
-        self.tmp = Path(tempfile.mkdtemp(prefix="jeanscv-serve-"))
+        self.tmp: Path | None = None  # made when the server starts, removed when it stops
         self.folder_lock = threading.Lock()
         self.backend = config.backend
 
+    def open(self) -> None:
+        self.tmp = Path(tempfile.mkdtemp(prefix="jeanscv-serve-"))
+
     def close(self) -> None:
         self.pool.shutdown()
-        shutil.rmtree(self.tmp, ignore_errors=True)
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
 
 
 def _error(status: int, reason: str, **headers) -> JSONResponse:
@@ -413,6 +417,7 @@ def create_app(config: Config) -> Guard:
 
     @asynccontextmanager
     async def lifespan(app):
+        state.open()
         if config.warm:
             engine.warm_up()
         try:
