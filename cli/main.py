@@ -36,6 +36,8 @@ Examples:
   jeanscv pets.jpg --point 420,310 --background-point 90,40   ...and not on that
   jeanscv pets.jpg --clicks pets.clicks.json                   replay saved clicks
   jeanscv car.jpg --posture any         jeans in any posture, lying ones too
+  jeanscv serve [FOLDER]                a local web page: drop a photo, click the subject
+                                        (see 'jeanscv serve --help')
 
 \b
 Outputs are written next to each input as NAME.jeans.EXT (or under -o DIR).
@@ -567,7 +569,12 @@ def _write_report(path: Path, records: list[dict], progress) -> bool:
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point; ``jeanscv serve ...`` runs the web page's command."""
+    if len(sys.argv) > 1 and sys.argv[1] == "serve":
+        from .serve import main as serve_main
+
+        serve_main(sys.argv[2:])
+        return
     cli(prog_name="jeanscv")
 
 

@@ -1,0 +1,124 @@
+"""``jeanscv serve`` latency through its HTTP interface: page load, drop to jeans, click to jeans.
+
+    python -m bench.serve_latency                 # 4 shared real photos, upscaled to 12 MP
+    python -m bench.serve_latency --photos 8 --clicks 5 --think 1.0
+
+A fresh server (its own process, 127.0.0.1, the fit kernels already compiled on this
+installation) is started; then:
+
+* page: ``GET /`` with its script and style, 20 times: median seconds and total bytes;
+* drop: each photo (a ``../shared/real_photos`` photo upscaled to 12 MP, JPEG q92) is
+  uploaded and its preview fetched: seconds until the page has its jeans;
+* clicks: after ``--think`` seconds (a person looks before clicking; the server builds
+  the photo's click session meanwhile), the simulated-click protocol of
+  ``bench/clicks.py`` (the next click in the largest error region of the outline the
+  server drew) sends ``--clicks`` clicks, each a render plus the preview fetch.
+
+Prints per photo and the medians; targets: page < 0.1 s and < 300 KB, drop < 3 s,
+click median < 0.5 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import statistics
+import time
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from bench.clicks import SHARED, photo_pairs, upscale
+from bench.serve_client import Server
+from jeanscv.silhouette.interactive import simulated_click
+
+
+def outline_mask(objects: list, size: tuple[int, int]) -> np.ndarray:
+    """The server's outlines (photo pixels) filled: the mask the page shows."""
+    width, height = size
+    mask = np.zeros((height, width), np.uint8)
+    for obj in objects:
+        for ring in obj["outline"]:
+            cv2.fillPoly(mask, [np.round(np.asarray(ring) * 8).astype(np.int32)], 1, shift=3)
+    return mask.astype(bool)
+
+
+def page_load(server: Server, rounds: int = 20) -> tuple[float, int]:
+    seconds, size = [], 0
+    for _ in range(rounds):
+        began = time.perf_counter()
+        size = 0
+        for path in ("/", "/static/app.js", "/static/style.css"):
+            status, _, body = server.request("GET", path)
+            assert status == 200, path
+            size += len(body)
+        seconds.append(time.perf_counter() - began)
+    return statistics.median(seconds), size
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--photos", type=int, default=4)
+    parser.add_argument("--clicks", type=int, default=5)
+    parser.add_argument("--megapixels", type=float, default=12.0)
+    parser.add_argument("--think", type=float, default=1.0, help="seconds between the jeans and the first click")
+    args = parser.parse_args()
+    pairs = photo_pairs([SHARED])[: args.photos]
+    if not pairs:
+        raise SystemExit(f"no photos with masks in {SHARED}")
+    photos = []
+    for name, photo_path, mask_path in pairs:
+        pixels = np.asarray(Image.open(photo_path).convert("RGB"))
+        reference = np.asarray(Image.open(mask_path).convert("L")) >= 128
+        big, mask = upscale(pixels, reference, args.megapixels)
+        buffer = io.BytesIO()
+        Image.fromarray(big).save(buffer, "JPEG", quality=92)
+        photos.append((name, buffer.getvalue(), mask))
+
+    server = Server()
+    try:
+        load, weight = page_load(server)
+        print(f"page: {load * 1000:.1f} ms (median of 20: /, app.js, style.css), {weight / 1024:.1f} KB")
+        drops, clicks = [], []
+        for name, data, reference in photos:
+            began = time.perf_counter()
+            status, _, body = server.upload(f"{name}.jpg", data)
+            answer = json.loads(body)
+            assert status == 200, answer
+            server.request("GET", answer["preview"])
+            drop = time.perf_counter() - began
+            drops.append(drop)
+            time.sleep(args.think)
+            size = (answer["width"], answer["height"])
+            positive, negative, mine = [], [], []
+            predicted = None
+            for _ in range(args.clicks):
+                sign, point = simulated_click(reference, predicted)
+                (positive if sign else negative).append([round(point[0], 1), round(point[1], 1)])
+                began = time.perf_counter()
+                status, _, body = server.render(answer["photo"], [{"positive": positive, "negative": negative}])
+                result = json.loads(body)
+                assert status == 200, result
+                server.request("GET", result["preview"])
+                mine.append(time.perf_counter() - began)
+                predicted = outline_mask(result["objects"], size)
+            clicks += mine
+            print(
+                f"{name}: {size[0]}x{size[1]} drop {drop:.2f} s, clicks "
+                + " ".join(f"{s:.2f}" for s in mine)
+                + f" s (median {statistics.median(mine):.2f})"
+            )
+        print(
+            f"drop to jeans: median {statistics.median(drops):.2f} s, max {max(drops):.2f} s; "
+            f"click to jeans: median {statistics.median(clicks):.2f} s over {len(clicks)} clicks"
+        )
+    finally:
+        code, seconds = server.stop()
+        print(f"Ctrl-C: exit status {code} in {seconds:.1f} s; temporary files left: {len(server.leftovers())}")
+        server.remove()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,212 @@
+"""``jeanscv serve`` under load: 200 requests over loopback, 8 at a time.
+
+    python -m bench.serve_load
+    python -m bench.serve_load --requests 400 --concurrency 16 --seed 2
+
+A fresh server (its own process on 127.0.0.1, default options but a 20 MB upload cap)
+gets a shuffled mix: uploads of good photos (the shared real photos at their own size,
+a few upscaled to 12 MP), uploads of bad files (empty, truncated, text, a PNG header
+claiming 50000x50000 pixels, a body over the upload cap), clicks on photos uploaded
+before, and downloads (image, meme, JSON, SVG, clicks, a few GIFs). Each request is sent
+until it gets an answer other than 503 (the pool is full), after the server's Retry-After,
+as the page does (at most 30 times; a request still refused then counts as a 503).
+
+Prints the answers by status, the seconds per kind, the server's peak memory (VmHWM),
+and the temporary files left while it runs and after Ctrl-C. Passes when every request
+is answered with 200, 4xx or 503, the peak stays under 1.5 GB, no temporary file is left
+and the server stops with status 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import io
+import json
+import random
+import statistics
+import struct
+import threading
+import time
+import zlib
+
+import numpy as np
+from PIL import Image
+
+from bench.clicks import SHARED, photo_pairs, upscale
+from bench.serve_client import Server
+
+MEMORY_LIMIT = 1.5e9
+RETRIES = 30
+
+
+def jpeg(pixels: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    Image.fromarray(pixels).save(buffer, "JPEG", quality=90)
+    return buffer.getvalue()
+
+
+def bad_files(good: bytes) -> dict[str, bytes]:
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    bomb = (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", 50000, 50000, 8, 2, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(b"\x00" * 64))
+        + chunk(b"IEND", b"")
+    )
+    return {
+        "empty.png": b"",
+        "truncated.jpg": good[:400],
+        "text.jpg": b"not a picture\n" * 30,
+        "bomb.png": bomb,
+        "fake.nef": b"II*\x00" + b"\x00" * 400,
+        "huge.jpg": b"\xff" * (21 << 20),  # over the 20 MB cap: 413
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--requests", type=int, default=200)
+    parser.add_argument("--concurrency", type=int, default=8)
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    pairs = photo_pairs([SHARED])
+    if not pairs:
+        raise SystemExit(f"no photos in {SHARED}")
+    goods = []
+    for index, (name, photo_path, mask_path) in enumerate(pairs):
+        pixels = np.asarray(Image.open(photo_path).convert("RGB"))
+        if index < 3:
+            reference = np.asarray(Image.open(mask_path).convert("L")) >= 128
+            pixels, _ = upscale(pixels, reference, 12.0)
+            name += "-12mp"
+        goods.append((f"{name}.jpg", jpeg(pixels)))
+    bads = list(bad_files(goods[-1][1]).items())
+    kinds = ["upload"] * 50 + ["bad"] * 30 + ["click"] * 70 + ["download"] * 50
+    plan = [kinds[i % len(kinds)] for i in range(args.requests)]
+    rng.shuffle(plan)
+    plan = ["upload"] + plan[: args.requests - 1]  # something to click on early
+
+    server = Server("--max-upload-mb", "20")
+    photos: list[dict] = []  # answers of good uploads (photo id, size, downloads)
+    lock = threading.Lock()
+    statuses: collections.Counter = collections.Counter()
+    seconds: dict[str, list[float]] = collections.defaultdict(list)
+    failures: list[str] = []
+    peak = [0]
+    busy = [0]  # 503 answers, each followed by a retry
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.is_set():
+            peak[0] = max(peak[0], server.memory()[0])
+            time.sleep(0.2)
+
+    def one(kind: str, chooser: random.Random) -> None:
+        """One request, sent again after the server's Retry-After while it answers 503
+        (as the page does), at most ``RETRIES`` times."""
+        for _ in range(RETRIES + 1):
+            status = attempt_one(kind, chooser)
+            if status != 503:
+                return
+            with lock:
+                busy[0] += 1
+            time.sleep(2)
+        with lock:
+            statuses[503] += 1  # still busy after every retry: answered, all the same
+
+    def attempt_one(kind: str, chooser: random.Random) -> int:
+        with lock:
+            known = list(photos)
+        if kind in ("click", "download") and not known:
+            kind = "upload"
+        began = time.perf_counter()
+        if kind == "upload":
+            name, data = chooser.choice(goods)
+            status, _, body = server.upload(name, data)
+            if status == 200:
+                answer = json.loads(body)
+                with lock:
+                    photos.append(answer)
+        elif kind == "bad":
+            name, data = chooser.choice(bads)
+            status, _, body = server.upload(name, data)
+        elif kind == "click":
+            answer = chooser.choice(known)
+            width, height = answer["width"], answer["height"]
+            points = [[round(chooser.uniform(0.3, 0.7) * width, 1), round(chooser.uniform(0.3, 0.7) * height, 1)]]
+            status, _, body = server.render(answer["photo"], [{"positive": points, "negative": []}])
+            if status == 200:
+                with lock:
+                    photos.append(json.loads(body) | {"photo": answer["photo"]})
+        else:
+            answer = chooser.choice(known)
+            what = chooser.choice(["image", "meme", "json", "svg", "clicks", "image", "json", "gif"])
+            if what == "gif" and chooser.random() < 0.7:
+                what = "svg"  # a GIF takes seconds: a few of them
+            path = answer["downloads"][what] + ("?top=load&bottom=test" if what == "meme" else "")
+            status, _, body = server.request("GET", path)
+            kind = f"download {what}"
+        spent = time.perf_counter() - began
+        with lock:
+            if status != 503:
+                statuses[status] += 1
+                seconds[kind.split()[0]].append(spent)
+            if not (status in (200, 503) or 400 <= status < 500):
+                failures.append(f"{kind}: {status} {body[:200]!r}")
+        return status
+
+    queue = list(enumerate(plan))
+
+    def worker(number: int) -> None:
+        chooser = random.Random(args.seed * 1000 + number)
+        while True:
+            with lock:
+                if not queue:
+                    return
+                _, kind = queue.pop(0)
+            try:
+                one(kind, chooser)
+            except Exception as exc:  # noqa: BLE001 - a request that got no answer
+                with lock:
+                    statuses["no answer"] += 1
+                    failures.append(f"{kind}: {type(exc).__name__}: {exc}")
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    began = time.perf_counter()
+    threads = [threading.Thread(target=worker, args=(n,)) for n in range(args.concurrency)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    wall = time.perf_counter() - began
+    done.set()
+    watcher.join()
+    resident, high_water = server.memory()
+    running_leftovers = server.leftovers()
+    code, stop_seconds = server.stop()
+    after = server.leftovers() + ([str(server.tmp)] if any(server.tmp.iterdir()) else [])
+
+    answered = sum(v for k, v in statuses.items() if k != "no answer")
+    print(f"{len(plan)} requests, {args.concurrency} at a time, in {wall:.1f} s: {answered} answered")
+    print(f"503 (busy, retried after 2 s): {busy[0]} times")
+    print("final status: " + ", ".join(f"{k}: {v}" for k, v in sorted(statuses.items(), key=lambda kv: str(kv[0]))))
+    for kind, values in sorted(seconds.items()):
+        print(f"  {kind}: {len(values)}, median {statistics.median(values):.2f} s, max {max(values):.2f} s")
+    print(f"server memory: peak {high_water / 2**20:.0f} MB (VmHWM), {resident / 2**20:.0f} MB at the end")
+    print(f"temporary files: {len(running_leftovers)} while running, {len(after)} after Ctrl-C")
+    print(f"Ctrl-C: exit status {code} in {stop_seconds:.1f} s")
+    for failure in failures[:10]:
+        print("FAILED", failure)
+    server.remove()
+    ok = not failures and high_water < MEMORY_LIMIT and not running_leftovers and not after and code == 0
+    print("PASS" if ok else "FAIL")
+    raise SystemExit(0 if ok else 1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,88 @@
+"""``jeanscv serve``: a local web page to drop a photo, click the subject and take the meme home.
+
+Only click is imported here: the server's modules (Starlette, uvicorn, the library)
+load when the command runs. See ``docs/serve.md``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+EPILOG = """\b
+Examples:
+  jeanscv serve                      a page at http://127.0.0.1:8000/ for one photo at a time
+  jeanscv serve photos/ --open       the folder's photos with their jeans; fix one with clicks
+  jeanscv serve --port 9000
+
+\b
+The server binds to 127.0.0.1 (this machine only) unless --host says otherwise.
+In folder mode it reads and writes only inside FOLDER: NAME.jeans.EXT outputs and
+NAME.clicks.json clicks files, which a later 'jeanscv FOLDER' run uses.
+"""
+
+
+@click.command(
+    "serve",
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
+    epilog=EPILOG,
+)
+@click.argument("folder", required=False, type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (127.0.0.1: this machine).")
+@click.option("--port", type=click.IntRange(0, 65535), default=8000, show_default=True, help="Port to listen on.")
+@click.option("--open", "open_browser", is_flag=True, help="Open the page in the web browser.")
+@click.option(
+    "--max-upload-mb",
+    type=click.IntRange(1, 4096),
+    default=200,
+    show_default=True,
+    help="Largest upload accepted, in MB (camera RAW files are large).",
+)
+@click.option(
+    "--max-pixels",
+    type=click.IntRange(1),
+    default=100_000_000,
+    show_default=True,
+    help="Refuse images larger than this (decompression bombs).",
+)
+@click.option(
+    "--memory-mb",
+    type=click.IntRange(64),
+    default=400,
+    show_default=True,
+    help="Memory for the photos and results kept; the oldest are dropped past it.",
+)
+@click.option("--workers", type=click.IntRange(1, 64), default=1, show_default=True, help="Photos worked on at once.")
+@click.option(
+    "--queue",
+    type=click.IntRange(0, 256),
+    default=8,
+    show_default=True,
+    help="Requests that may wait for a worker; more are answered 'busy, retry' (503).",
+)
+def serve(folder, host, port, open_browser, max_upload_mb, max_pixels, memory_mb, workers, queue) -> None:
+    """Serve a page to put jeans on a photo: drop it, click the subject, download the meme.
+
+    With FOLDER: a gallery of its photos with their jeans, made on demand and kept there.
+    """
+    from .run import run_server
+
+    code = run_server(
+        folder=folder,
+        host=host,
+        port=port,
+        open_browser=open_browser,
+        max_upload=max_upload_mb << 20,
+        max_pixels=max_pixels,
+        store_bytes=memory_mb << 20,
+        workers=workers,
+        queue=queue,
+    )
+    sys.exit(code)
+
+
+def main(argv: list[str]) -> None:
+    """``jeanscv serve ARGS``: called by the ``jeanscv`` command."""
+    serve.main(args=argv, prog_name="jeanscv serve")

@@ -1,0 +1,467 @@
+"""The web page's HTTP interface (Starlette). See ``docs/serve.md`` for the endpoints.
+
+Ids in URLs are random keys of the in-memory store or indexes into the folder's list
+of photos: no file path is ever built from what a client sends.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import tempfile
+import threading
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+from starlette.routing import Route
+
+from jeanscv.errors import JeansError
+
+from . import engine
+from .guard import Guard, TooLarge, own_names
+from .store import Busy, Pool, Store
+
+#: Default upload cap: a 60-MP camera RAW file is 60-120 MB.
+DEFAULT_MAX_UPLOAD = 200 << 20
+DEFAULT_MAX_PIXELS = 100_000_000
+#: Default memory for the photos and results kept (a 12-MP photo holds about 60 MB).
+DEFAULT_STORE_BYTES = 400 << 20
+DOWNLOADS = ("image", "meme", "json", "svg", "gif", "clicks")
+_MEDIA = {
+    ".png": "image/png",
+    ".jpg": "image/jpeg",
+    ".webp": "image/webp",
+    ".tif": "image/tiff",
+    ".json": "application/json",
+    ".svg": "image/svg+xml",
+    ".gif": "image/gif",
+}
+_STATIC = {"/": ("index.html", "text/html; charset=utf-8")} | {
+    f"/static/{name}": (name, media)
+    for name, media in (("app.js", "text/javascript; charset=utf-8"), ("style.css", "text/css; charset=utf-8"))
+}
+_THUMB_SIDE = 480
+
+
+@dataclass
+class Config:
+    """The server's settings (``jeanscv serve`` options)."""
+
+    host: str = "127.0.0.1"
+    port: int = 8000
+    folder: Path | None = None
+    max_upload: int = DEFAULT_MAX_UPLOAD
+    max_pixels: int = DEFAULT_MAX_PIXELS
+    store_bytes: int = DEFAULT_STORE_BYTES
+    workers: int = 1
+    queue: int = 8
+    backend: str | None = None
+    warm: bool = True
+    extra_names: tuple[str, ...] = field(default_factory=tuple)
+
+
+@dataclass
+class Result:
+    """One render: what its downloads are made from. The fitted objects stay with the
+    photo (a few per photo, see :func:`engine.fitted_objects`), not here: a result holds
+    no full-size mask, so many results cost little memory."""
+
+    photo_id: str
+    clicks: object | None  # Clicks
+    options: engine.RenderOptions
+    preview: bytes
+    downloads: dict = field(default_factory=dict)  # kind -> (bytes, name), made on demand
+
+
+class State:
+    """Everything one server holds."""
+
+    def __init__(self, config: Config):
+        self.config = config
+        self.photos = Store(config.store_bytes)
+        self.results = Store(max(config.store_bytes // 4, 64 << 20))
+        self.pool = Pool(config.workers, config.queue)
+        self.tmp: Path | None = None  # made when the server starts, removed when it stops
+        self.folder_lock = threading.Lock()
+        self.backend = config.backend
+
+    def open(self) -> None:
+        self.tmp = Path(tempfile.mkdtemp(prefix="jeanscv-serve-"))
+
+    def close(self) -> None:
+        self.pool.shutdown()
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+def _error(status: int, reason: str, **headers) -> JSONResponse:
+    return JSONResponse({"error": reason}, status_code=status, headers=headers or None)
+
+
+def _busy() -> JSONResponse:
+    return _error(503, "the server is busy with other photos: trying again in a moment", **{"Retry-After": "2"})
+
+
+def _safe_name(filename: str | None) -> str:
+    """A display name from the client's file name: its last part, printable, short.
+    Only ever shown and used to name downloads, never opened."""
+    name = (filename or "photo").replace("\\", "/").rsplit("/", 1)[-1]
+    name = "".join(c for c in name if c.isprintable() and c not in '"<>|:*?')[-120:].strip(". ")
+    return name or "photo"
+
+
+def _suffix(name: str) -> str:
+    """The temporary copy's extension: the client's, if it is one jeanscv reads (RAW
+    files are recognised by it), else none (Pillow then tells the format by content)."""
+    from jeanscv.io.image import SUPPORTED_EXTENSIONS
+    from jeanscv.io.svg import SVG_EXTENSIONS
+
+    suffix = Path(name).suffix.lower()
+    return suffix if suffix in SUPPORTED_EXTENSIONS | SVG_EXTENSIONS else ".img"
+
+
+def _log(message: str) -> None:
+    print(f"jeanscv serve: {' '.join(message.split())}", file=sys.stderr, flush=True)
+
+
+def _reason(exc: BaseException, name: str) -> str:
+    from ..worker import failure_reason
+
+    reason = failure_reason(exc)
+    if not isinstance(exc, JeansError):
+        _log(f"{name}: {reason}")
+    return f"{name}: {reason}"
+
+
+def create_app(config: Config) -> Guard:
+    """The ASGI application: Starlette's routes behind the :class:`Guard`."""
+    state = State(config)
+    pages = {
+        path: (resources.files(__package__).joinpath("static", file).read_bytes(), media)
+        for path, (file, media) in _STATIC.items()
+    }
+
+    async def static(request: Request) -> Response:
+        body, media = pages[request.url.path]
+        return Response(body, media_type=media, headers={"Cache-Control": "no-cache"})
+
+    async def options(request: Request) -> Response:
+        return JSONResponse(
+            {
+                "garments": engine.garments(),
+                "styles": list(engine.STYLES),
+                "postures": list(engine.POSTURES),
+                "max_upload": config.max_upload,
+                "folder": config.folder is not None,
+                "folder_name": config.folder.name if config.folder is not None else "",
+            }
+        )
+
+    def render(photo_id: str, photo: engine.Photo, clicks, render_options) -> dict:
+        objects = engine.fitted_objects(photo, clicks, render_options, state.backend)
+        preview = engine.encode_preview(engine.preview_picture(photo, objects, render_options))
+        result = Result(photo_id, clicks, render_options, preview)
+        result_id = state.results.put(result, _result_bytes(result))
+        state.photos.resize(photo_id, photo.nbytes)
+        return {
+            "result": result_id,
+            "preview": f"/api/results/{result_id}/preview",
+            "width": photo.size[0],
+            "height": photo.size[1],
+            "objects": engine.page_objects(photo, objects),
+            "summary": engine.report_summary(photo, objects),
+            "clicks": clicks is not None,
+            "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
+        }
+
+    def open_and_render(path: Path, name: str, clicks_for) -> dict:
+        photo = engine.open_photo(path, name, config.max_pixels)
+        photo_id = state.photos.put(photo, photo.nbytes)
+        clicks = clicks_for(photo) if clicks_for else None
+        answer = render(photo_id, photo, clicks, engine.RenderOptions())
+        if clicks is not None:
+            answer["saved_clicks"] = [obj.to_json() for obj in clicks.objects]
+        if photo.kind == "photo":
+            # The click session (about half a second) is made while the person looks.
+            state.pool.submit_background(_prepare_session, photo)
+        return {"photo": photo_id, "name": name, "kind": photo.kind, **answer}
+
+    def upload_job(upload, name: str) -> dict:
+        fd, temporary = tempfile.mkstemp(suffix=_suffix(name), dir=state.tmp)
+        try:
+            with os.fdopen(fd, "wb") as copy:
+                upload.file.seek(0)
+                shutil.copyfileobj(upload.file, copy, 1 << 20)
+            return open_and_render(Path(temporary), name, None)
+        finally:
+            os.unlink(temporary)
+
+    async def upload(request: Request) -> Response:
+        try:
+            form = await request.form(max_files=1, max_fields=8)
+        except TooLarge:
+            raise  # the Guard answers 413
+        except Exception:  # noqa: BLE001 - malformed multipart: one line, never a traceback
+            return _error(400, "expected a multipart form with one file in the field 'file'")
+        try:
+            file = form.get("file")
+            if file is None or isinstance(file, str):
+                return _error(400, "expected a multipart form with one file in the field 'file'")
+            name = _safe_name(file.filename)
+            try:
+                return JSONResponse(await state.pool.run(upload_job, file, name))
+            except Busy:
+                return _busy()
+            except Exception as exc:  # noqa: BLE001 - the command line's one-line reason
+                return _error(422, _reason(exc, name))
+        finally:
+            await form.close()
+
+    async def _json_body(request: Request):
+        try:
+            body = await request.body()
+            return json.loads(body or b"{}")
+        except (ValueError, UnicodeDecodeError):
+            raise JeansError("the request body is not valid JSON") from None
+
+    async def rerender(request: Request) -> Response:
+        photo_id = request.path_params["photo"]
+        photo = state.photos.get(photo_id)
+        if photo is None:
+            return _error(404, "no such photo (it may have expired: drop it again)")
+        try:
+            data = await _json_body(request)
+            if not isinstance(data, dict):
+                raise JeansError("expected a JSON object")
+            render_options = engine.RenderOptions.from_json(data.get("options"))
+            clicks = engine.clicks_from_json(data.get("objects"), photo.size)
+        except JeansError as exc:
+            return _error(422, f"{photo.name}: {exc}")
+        try:
+            answer = await state.pool.run(render, photo_id, photo, clicks, render_options)
+        except Busy:
+            return _busy()
+        except Exception as exc:  # noqa: BLE001
+            return _error(422, _reason(exc, photo.name))
+        return JSONResponse({"photo": photo_id, "name": photo.name, "kind": photo.kind, **answer})
+
+    async def result_file(request: Request) -> Response:
+        result = state.results.get(request.path_params["result"])
+        kind = request.path_params["kind"]
+        if result is None:
+            return _error(404, "no such result (it may have expired: render it again)")
+        if kind == "preview":
+            return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
+        if kind not in DOWNLOADS:
+            return _error(404, f"no download called {kind!r}")
+        photo = state.photos.get(result.photo_id)
+        if photo is None:
+            return _error(404, "the photo has expired: drop it again")
+        wanted = result.options
+        if kind == "meme":
+            query = request.query_params
+            wanted = replace(
+                wanted,
+                top=query.get("top", wanted.top)[:200],
+                bottom=query.get("bottom", wanted.bottom)[:200],
+                side_by_side=query.get("side_by_side", "1" if wanted.side_by_side else "0") == "1",
+            )
+        key = (kind, wanted)
+        made = result.downloads.get(key)
+        if made is None:
+            try:
+                made = await state.pool.run(make_download, photo, result, wanted, kind)
+            except Busy:
+                return _busy()
+            except Exception as exc:  # noqa: BLE001
+                return _error(422, _reason(exc, photo.name))
+            if len(made[0]) < (32 << 20):
+                result.downloads = {k: v for k, v in result.downloads.items() if k[0] != kind}  # the newest of a kind
+                result.downloads[key] = made
+                state.results.resize(request.path_params["result"], _result_bytes(result))
+        data, filename = made
+        media = _MEDIA.get(Path(filename).suffix.lower(), "application/octet-stream")
+        if filename.endswith(".clicks.json"):
+            media = "application/json"
+        ascii_name = "".join(c if c.isascii() and c.isprintable() and c not in '"\\' else "_" for c in filename)
+        return Response(data, media_type=media, headers={"Content-Disposition": f'attachment; filename="{ascii_name}"'})
+
+    async def original(request: Request) -> Response:
+        photo = state.photos.get(request.path_params["photo"])
+        if photo is None:
+            return _error(404, "no such photo (it may have expired: drop it again)")
+        if photo.original_jpeg is None:
+            photo.original_jpeg = engine.encode_preview(photo.preview)
+        return Response(
+            photo.original_jpeg, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"}
+        )
+
+    def make_download(photo: engine.Photo, result: Result, wanted: engine.RenderOptions, kind: str):
+        objects = engine.fitted_objects(photo, result.clicks, wanted, state.backend)
+        state.photos.resize(result.photo_id, photo.nbytes)
+        return engine.download(photo, objects, wanted, kind, result.clicks)
+
+    # ------------------------------------------------------------------ folder mode
+    def folder_items() -> list:
+        folder = config.folder.resolve()
+        return [job for job in engine.folder_jobs(config.folder) if _inside(job.path, folder)]
+
+    def folder_job(request: Request):
+        if config.folder is None:
+            return None
+        index = request.path_params["item"]
+        jobs = folder_items()
+        return jobs[index] if 0 <= index < len(jobs) else None
+
+    def item_entry(index: int, job) -> dict:
+        return {
+            "item": index,
+            "name": str(job.path.relative_to(config.folder)),
+            "output": job.outputs["image"].exists(),
+            "clicks": engine.saved_clicks(job) is not None,
+            "thumb": f"/api/folder/{index}/thumb",
+        }
+
+    async def folder_list(request: Request) -> Response:
+        if config.folder is None:
+            return _error(404, "not serving a folder (start with: jeanscv serve FOLDER)")
+        jobs = folder_items()
+        return JSONResponse({"folder": config.folder.name, "items": [item_entry(i, j) for i, j in enumerate(jobs)]})
+
+    def thumbnail(job) -> bytes | str:
+        with state.folder_lock:
+            if engine.output_stale(job):
+                reason = engine.write_folder_outputs(job, state.backend, config.max_pixels)
+                if reason:
+                    return reason
+        return engine.thumbnail(job.outputs["image"], _THUMB_SIDE)
+
+    async def folder_thumb(request: Request) -> Response:
+        job = folder_job(request)
+        if job is None:
+            return _error(404, "no such photo in the folder")
+        try:
+            made = await state.pool.run(thumbnail, job)
+        except Busy:
+            return _busy()
+        except Exception as exc:  # noqa: BLE001
+            return _error(422, _reason(exc, job.path.name))
+        if isinstance(made, str):
+            return _error(422, f"{job.path.name}: {made}")
+        return Response(made, media_type="image/jpeg", headers={"Cache-Control": "no-cache"})
+
+    async def folder_open(request: Request) -> Response:
+        job = folder_job(request)
+        if job is None:
+            return _error(404, "no such photo in the folder")
+
+        def saved(photo):
+            clicks = engine.saved_clicks(job)
+            if clicks is None or photo.kind != "photo":
+                return None
+            try:
+                clicks.check(photo.size)
+            except JeansError:
+                return None
+            return clicks
+
+        try:
+            answer = await state.pool.run(open_and_render, job.path, job.path.name, saved)
+        except Busy:
+            return _busy()
+        except Exception as exc:  # noqa: BLE001
+            return _error(422, _reason(exc, job.path.name))
+        answer["item"] = request.path_params["item"]
+        return JSONResponse(answer)
+
+    async def folder_save(request: Request) -> Response:
+        job = folder_job(request)
+        if job is None:
+            return _error(404, "no such photo in the folder")
+        try:
+            data = await _json_body(request)
+            if not isinstance(data, dict):
+                raise JeansError("expected a JSON object")
+        except JeansError as exc:
+            return _error(422, str(exc))
+        photo = state.photos.get(str(data.get("photo", "")))
+        if photo is None:
+            return _error(404, "no such photo (it may have expired: open it again)")
+        if photo.name != job.path.name:
+            return _error(422, "this photo is not that folder item")
+        try:
+            clicks = engine.clicks_from_json(data.get("objects"), photo.size)
+            if clicks is None:
+                raise JeansError("no clicks to save: click the subject first")
+        except JeansError as exc:
+            return _error(422, f"{photo.name}: {exc}")
+
+        def save() -> None:
+            with state.folder_lock:
+                engine.save_clicks(job, clicks, state.backend, config.max_pixels)
+
+        try:
+            await state.pool.run(save)
+        except Busy:
+            return _busy()
+        except Exception as exc:  # noqa: BLE001
+            return _error(422, _reason(exc, photo.name))
+        return JSONResponse(item_entry(request.path_params["item"], job))
+
+    @asynccontextmanager
+    async def lifespan(app):
+        state.open()
+        if config.warm:
+            engine.warm_up()
+        try:
+            yield
+        finally:
+            state.close()
+
+    routes = [Route(path, static) for path in _STATIC] + [
+        Route("/api/options", options),
+        Route("/api/photos", upload, methods=["POST"]),
+        Route("/api/photos/{photo}/render", rerender, methods=["POST"]),
+        Route("/api/photos/{photo}/original", original),
+        Route("/api/results/{result}/{kind}", result_file),
+        Route("/api/folder", folder_list),
+        Route("/api/folder/{item:int}/thumb", folder_thumb),
+        Route("/api/folder/{item:int}/open", folder_open, methods=["POST"]),
+        Route("/api/folder/{item:int}/clicks", folder_save, methods=["POST"]),
+    ]
+
+    async def too_large(request: Request, exc: TooLarge) -> Response:
+        return _error(413, TooLarge.reason(config.max_upload))
+
+    app = Starlette(routes=routes, lifespan=lifespan, exception_handlers={TooLarge: too_large})
+    app.state.jeanscv = state
+    names = own_names(config.host) | set(config.extra_names)
+    return Guard(app, names=names, port=config.port or None, max_body=config.max_upload)
+
+
+def _result_bytes(result: Result) -> int:
+    return len(result.preview) + sum(len(data) for data, _ in result.downloads.values()) + 4096
+
+
+def _prepare_session(photo) -> None:
+    try:
+        with photo.lock:
+            photo.session()
+    except Exception:  # noqa: BLE001 - the first click will report it
+        pass
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` (symbolic links followed) lies in ``folder``."""
+    try:
+        path.resolve().relative_to(folder)
+    except ValueError:
+        return False
+    return True

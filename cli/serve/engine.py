@@ -1,0 +1,480 @@
+"""The server's one adapter to the library and the command line's worker.
+
+Everything the page does to a photo goes through here: decode an upload, the
+automatic result, a result from clicks, the full-resolution downloads, and a folder
+photo's outputs. The HTTP layer (:mod:`.app`) never calls :mod:`jeanscv` itself.
+
+Clicks become silhouettes in :func:`silhouettes_from_clicks`: the photo keeps one
+``ClickSession`` (the library's ``extract_silhouettes(clicks=...)`` makes a new one per
+call, half a second on a 12-MP photo), and each object is segmented and framed as the
+library does it, so the page's result is the command line's. A folder's outputs are made
+by the command line's own worker, which reads the clicks saved beside the photo.
+
+Coordinates sent to and from the page are pixels of the photo as displayed (x right,
+y down, package convention); the interactive preview is a copy whose long side is at
+most :data:`PREVIEW_SIDE`, and the full-resolution picture is made on download.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from jeanscv import api
+from jeanscv.clicks import Clicks, read_clicks, sidecar_path, write_clicks
+from jeanscv.errors import JeansError
+from jeanscv.framing import Framing
+from jeanscv.options import JeansOptions
+from jeanscv.runner import encode_picture, report_text
+from jeanscv.silhouettes import box_of
+
+from .. import worker
+from ..discover import Job
+from ..extras import optimisation_gif, svg_document
+
+#: Long side of the interactive preview: clicks on 12-MP photos stay quick.
+PREVIEW_SIDE = 1280
+#: Trajectory frames sent to the page for the fit's animation.
+ANIMATION_FRAMES = 40
+#: Contour vertices sent to the page are simplified to this many image pixels (at most).
+CONTOUR_TOLERANCE = 1.5
+#: Fitted results kept per photo (the latest clicks, and a download's): each holds full-size masks.
+FITS_KEPT = 3
+STYLES = ("denim", "flat")
+POSTURES = ("upright", "any")
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """The options the page offers (everything else is the command line's default)."""
+
+    style: str = "denim"
+    garment: str = "jeans"
+    posture: str = "upright"
+    top: str = ""
+    bottom: str = ""
+    side_by_side: bool = False
+
+    @classmethod
+    def from_json(cls, data) -> RenderOptions:
+        """Options from the page's JSON; JeansError naming a bad value."""
+        from jeanscv.plugins import available_garments
+
+        if data is None:
+            return cls()
+        if not isinstance(data, dict):
+            raise JeansError("options must be a JSON object")
+        options = cls(
+            style=str(data.get("style", "denim")),
+            garment=str(data.get("garment", "jeans")),
+            posture=str(data.get("posture", "upright")),
+            top=str(data.get("top") or "")[:200],
+            bottom=str(data.get("bottom") or "")[:200],
+            side_by_side=bool(data.get("side_by_side", False)),
+        )
+        if options.style not in STYLES:
+            raise JeansError(f"unknown style {options.style!r} (use denim or flat)")
+        if options.posture not in POSTURES:
+            raise JeansError(f"unknown posture {options.posture!r} (use upright or any)")
+        if options.garment not in available_garments():
+            raise JeansError(f"unknown garment {options.garment!r}")
+        return options
+
+    def fit_key(self) -> tuple:
+        """What the fits depend on (captions and layout do not)."""
+        return (self.garment, self.posture)
+
+    def jeans_options(self, backend: str | None, max_pixels: int = 100_000_000) -> JeansOptions:
+        """The library's options for these (every other one at the command line's default)."""
+        return JeansOptions(
+            garment=self.garment,
+            posture=self.posture,
+            style=self.style,
+            top=self.top or None,
+            bottom=self.bottom or None,
+            side_by_side=self.side_by_side,
+            backend=backend,
+            max_pixels=max_pixels,
+        )
+
+
+def garments() -> list[str]:
+    """The garment names the page offers."""
+    from jeanscv.plugins import available_garments
+
+    return sorted(available_garments())
+
+
+def default_backend() -> str:
+    """The fitting backend the command line would pick on this machine's CPU."""
+    from jeanscv.device import resolve_backend
+
+    return resolve_backend(None, "cpu")
+
+
+def warm_up() -> None:
+    """Compile or load the fit kernels now, so the first photo does not wait for them."""
+    from jeanscv import _fast
+
+    if default_backend() == "fast":
+        _fast.warm_up()
+
+
+@dataclass
+class Photo:
+    """A decoded photo or silhouette, held while the page works on it.
+
+    ``pixels``: the decoded image at full size (None for an SVG); ``size``: (width,
+    height) as displayed, the frame of every coordinate; ``preview``: the picture the
+    page shows, long side at most :data:`PREVIEW_SIDE`; ``auto``: the automatic
+    silhouettes at full size.
+    """
+
+    name: str
+    kind: str  # "photo" or "silhouette"
+    pixels: np.ndarray | None
+    loaded: object | None  # LoadedImage
+    size: tuple[int, int]
+    preview: np.ndarray
+    auto: list
+    auto_error: str = ""
+    original_jpeg: bytes | None = None
+    _session: object | None = None
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
+
+    @property
+    def scale(self) -> float:
+        """Preview pixels per photo pixel."""
+        return self.preview.shape[1] / self.size[0]
+
+    @property
+    def nbytes(self) -> int:
+        """Memory this photo holds (what the store's byte cap counts)."""
+        total = self.preview.nbytes + (0 if self.pixels is None else self.pixels.nbytes)
+        masks = {id(s.mask): s.mask.nbytes for s in self.auto}
+        fits = tuple(self.fits.values())  # a snapshot: another thread may add one
+        masks |= {id(o.silhouette.mask): o.silhouette.mask.nbytes for fit in fits for o in fit}
+        total += sum(masks.values())
+        if self._session is not None:
+            total += self.pixels.nbytes // 8  # working copies and cached masks
+        return total
+
+    def session(self):
+        """The click session (made on first use: about half a second). Hold ``lock``."""
+        if self._session is None:
+            from jeanscv.silhouette.interactive import ClickSession
+
+            self._session = ClickSession(self.pixels)
+        return self._session
+
+
+def _downscale(pixels: np.ndarray, side: int) -> np.ndarray:
+    height, width = pixels.shape[:2]
+    scale = min(1.0, side / max(width, height))
+    if scale >= 1.0:
+        return np.ascontiguousarray(pixels)
+    size = (max(1, round(width * scale)), max(1, round(height * scale)))
+    return cv2.resize(pixels, size, interpolation=cv2.INTER_AREA)
+
+
+def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
+    """A silhouette figure at preview size; an SVG's figure is drawn on the 256 canvas,
+    which its framing places on the drawing's own width and height."""
+    width, height = (int(v) for v in silhouette.framing.image_size)
+    scale = min(1.0, PREVIEW_SIDE / max(width, height))
+    target = (max(1, round(width * scale)), max(1, round(height * scale)))
+    if silhouette.mask_is_canvas:
+        forward = silhouette.framing.canvas_to_image * scale
+        return cv2.warpAffine(picture, forward, target, flags=cv2.INTER_AREA, borderValue=(255, 255, 255))
+    if picture.shape[1::-1] == target:
+        return picture
+    return cv2.resize(picture, target, interpolation=cv2.INTER_AREA)
+
+
+def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
+    """Decode and segment a file (an upload's temporary copy, or a folder's photo).
+
+    Raises JeansError with the command line's one-line reason for a bad file.
+    """
+    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels)
+    if kind == "silhouette":
+        first = silhouettes[0]
+        size = tuple(int(v) for v in first.framing.image_size)
+        preview = _figure_preview(api.figure(first), first)
+        return Photo(name, kind, None, None, size, preview, silhouettes)
+    height, width = pixels.shape[:2]
+    auto = [_compact(s) for s in silhouettes]
+    preview = _downscale(pixels, PREVIEW_SIDE)
+    return Photo(name, kind, pixels, loaded, (width, height), preview, auto)
+
+
+def _compact(silhouette):
+    """A photo's silhouette with a bool mask when its mask holds only 0 and 1 (a 12-MP
+    float mask is 48 MB); a soft one (a cut-out's alpha) is kept as it is."""
+    mask = np.asarray(silhouette.mask)
+    if mask.dtype != bool and np.count_nonzero((mask != 0) & (mask != 1)) == 0:
+        silhouette = replace(silhouette, mask=mask >= 0.5)
+    return silhouette
+
+
+def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
+    """One full-size silhouette per clicked object, in order, as
+    :func:`jeanscv.extraction.extract_silhouettes` makes them, from the photo's own session."""
+    from jeanscv.extraction import _framed
+
+    clicks.check(photo.size)
+    with photo.lock:
+        session = photo.session()
+        found = []
+        for index, obj in enumerate(clicks.objects):
+            segmentation = session.segment(obj.positive, obj.negative)
+            if not segmentation.mask.any():
+                raise JeansError(f"object {index + 1}: the clicks give an empty mask")
+            silhouette = _framed(segmentation, obj.positive[0])
+            silhouette.details["clicks"] = obj.to_json()
+            found.append(silhouette)
+    return found
+
+
+def _clicks_key(clicks: Clicks | None) -> tuple:
+    if clicks is None:
+        return ()
+    return tuple((obj.positive, obj.negative) for obj in clicks.objects)
+
+
+def fitted_objects(photo: Photo, clicks: Clicks | None, options: RenderOptions, backend: str | None) -> list:
+    """``[FittedObject]``: the clicked objects (or the automatic ones), each fitted.
+
+    Fits are remembered per photo by clicks and options, so a caption change or a
+    download does not fit again.
+    """
+    key = (options.fit_key(), _clicks_key(clicks))
+    with photo.lock:
+        cached = photo.fits.pop(key, None)
+        if cached is not None:
+            photo.fits[key] = cached  # the most recently used last
+            return cached
+    if clicks is None:
+        if not photo.auto:
+            raise JeansError(photo.auto_error or "no object found to segment")
+        silhouettes = photo.auto
+    else:
+        if photo.kind != "photo":
+            raise JeansError("a silhouette drawing has nothing to click: its shape is the subject")
+        silhouettes = silhouettes_from_clicks(photo, clicks)
+    objects = [
+        api.FittedObject(s, api.fit(s, options.garment, posture=options.posture, backend=backend)) for s in silhouettes
+    ]
+    with photo.lock:
+        while len(photo.fits) >= FITS_KEPT:  # each holds full-size masks: keep a few
+            photo.fits.pop(next(iter(photo.fits)))
+        photo.fits[key] = objects
+    return objects
+
+
+def _scaled(silhouette, scale: float, shape: tuple[int, int]):
+    """The silhouette on a copy of its photo scaled by ``scale`` (shape (h, w))."""
+    mask = silhouette.mask
+    if mask.dtype == bool:  # area-averaged as 8 bits: a quarter of a float copy's memory traffic
+        plane = cv2.resize(mask.view(np.uint8) * np.uint8(255), (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+        small = plane.astype(np.float32) / 255.0
+    else:
+        small = cv2.resize(mask.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    framing = silhouette.framing
+    scaled = Framing((framing.origin[0] * scale, framing.origin[1] * scale), framing.side * scale, (shape[1], shape[0]))
+    return replace(silhouette, mask=small, framing=framing if silhouette.mask_is_canvas else scaled)
+
+
+def preview_picture(photo: Photo, objects: list, options: RenderOptions) -> np.ndarray:
+    """The jeans on the preview copy (no captions: the page draws them live)."""
+    if photo.kind == "silhouette":
+        first = objects[0]
+        return _figure_preview(api.figure(first.silhouette, first.fit), first.silhouette)
+    image = photo.preview
+    scale = photo.scale
+    for index, obj in enumerate(objects):
+        small = _scaled(obj.silhouette, scale, image.shape[:2])
+        image = api.composite(image, obj.fit, small, style=options.style, seed=index)
+    return image
+
+
+def full_result(photo: Photo, objects: list, options: RenderOptions):
+    """A :class:`jeanscv.api.JeansResult` at full resolution, as the command line makes it."""
+    if photo.kind == "silhouette":
+        first = objects[0]
+        image = api.figure(first.silhouette, first.fit)
+        return api.JeansResult(image, first.silhouette, first.fit, "silhouette", None, objects)
+    image = photo.pixels
+    for index, obj in enumerate(objects):
+        image = api.composite(image, obj.fit, obj.silhouette, style=options.style, seed=index)
+    return api.JeansResult(image, objects[0].silhouette, objects[0].fit, "photo", photo.loaded, objects)
+
+
+def _simplified(points: np.ndarray) -> list:
+    contour = np.asarray(points, dtype=np.float32).reshape(-1, 1, 2)
+    if len(contour) > 8:
+        contour = cv2.approxPolyDP(contour, CONTOUR_TOLERANCE, True)
+    return np.round(contour.reshape(-1, 2).astype(np.float64), 1).tolist()
+
+
+def page_objects(photo: Photo, objects: list) -> list[dict]:
+    """What the page draws over the photo, in photo pixels: outline, jeans, the fit's path."""
+    entries = []
+    for obj in objects:
+        silhouette, fit = obj.silhouette, obj.fit
+        if silhouette.mask_is_canvas:
+            contours = api.silhouette_contours(silhouette)
+        elif silhouette.contour is not None and len(silhouette.contour) >= 3:
+            contours = [silhouette.contour]
+        else:
+            contours = api.silhouette_contours(silhouette)
+        trajectory = np.asarray(fit.trajectory, dtype=np.float64)
+        steps = np.unique(np.round(np.linspace(0, len(trajectory) - 1, ANIMATION_FRAMES)).astype(int))
+        entries.append(
+            {
+                "outline": [_simplified(c) for c in contours if len(c) >= 3],
+                "jeans": np.round(silhouette.framing.to_image(fit.vertices), 1).tolist(),
+                "trajectory": np.round(silhouette.framing.to_image(trajectory[steps]), 1).tolist(),
+                "method": silhouette.method,
+                "box": [int(v) for v in box_of(silhouette)],
+            }
+        )
+    return entries
+
+
+def encode_preview(pixels: np.ndarray) -> bytes:
+    """The preview as a JPEG (quality 88: small and quick to send)."""
+    image = Image.fromarray(np.ascontiguousarray(pixels[..., :3]) if pixels.ndim == 3 else pixels)
+    buffer = io.BytesIO()
+    image.save(buffer, "JPEG", quality=88)
+    return buffer.getvalue()
+
+
+def output_name(photo: Photo, suffix: str) -> str:
+    """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs."""
+    return Path(photo.name).stem + ".jeans" + suffix
+
+
+def download(
+    photo: Photo, objects: list, options: RenderOptions, kind: str, clicks: Clicks | None
+) -> tuple[bytes, str]:
+    """``(bytes, file name)`` of one download: ``image``, ``meme``, ``json``, ``svg``, ``gif`` or ``clicks``."""
+    from jeanscv.io.write import output_extension
+
+    if kind == "clicks":
+        if clicks is None:
+            raise JeansError("no clicks yet: click the photo first")
+        return clicks.dumps().encode("utf-8"), Path(photo.name).stem + ".clicks.json"
+    result = full_result(photo, objects, options)
+    picture_suffix = output_extension(photo.name) if photo.kind == "photo" else ".png"
+    job = Job(0, Path(photo.name), photo.name, {"image": Path(output_name(photo, picture_suffix))})
+    if kind in ("image", "meme"):
+        wanted = options if kind == "meme" else replace(options, top="", bottom="", side_by_side=False)
+        pixels = worker.picture(result, wanted.jeans_options(None))
+        target = Path(output_name(photo, picture_suffix))
+        return encode_picture(target, pixels, result), target.name
+    if kind == "json":
+        return report_text(result, job.display, str(job.outputs["image"])).encode("utf-8"), output_name(photo, ".json")
+    if kind == "svg":
+        polygons = [obj.silhouette.framing.to_image(obj.fit.vertices) for obj in objects]
+        contours = [c for obj in objects for c in api.silhouette_contours(obj.silhouette)]
+        text = svg_document(polygons, contours, tuple(int(v) for v in photo.size), f"jeanscv: {photo.name}")
+        return text.encode("utf-8"), output_name(photo, ".svg")
+    if kind == "gif":
+        return optimisation_gif(result, 50), output_name(photo, ".gif")
+    raise JeansError(f"unknown download {kind!r}")
+
+
+def report_summary(photo: Photo, objects: list) -> dict:
+    """The few report fields the page shows."""
+    first = objects[0]
+    details = first.silhouette.details
+    summary = {
+        "objects": len(objects),
+        "method": first.silhouette.method,
+        "objective": round(float(first.fit.objective), 4),
+        "uncertain": bool(details.get("uncertain", False)),
+    }
+    return summary
+
+
+# ------------------------------------------------------------------------- folder mode
+
+
+def folder_jobs(folder: Path) -> list[Job]:
+    """The folder's photos as the command line finds them (``jeanscv FOLDER``), in order."""
+    from ..discover import collect
+
+    return collect([str(folder)]).jobs
+
+
+def saved_clicks(job: Job) -> Clicks | None:
+    """The photo's clicks sidecar, when it has a usable one."""
+    path = sidecar_path(job.path)
+    if not path.is_file():
+        return None
+    try:
+        return read_clicks(path)
+    except JeansError:
+        return None
+
+
+def output_stale(job: Job) -> bool:
+    """Whether the folder photo's output is missing, or older than its clicks sidecar
+    (the command line's rule: it would redo it)."""
+    return "image" in worker.wanted_outputs(job, JeansOptions(), overwrite=False)
+
+
+def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> str:
+    """Make the folder photo's output as ``jeanscv FOLDER`` does (its saved clicks
+    included); '' or the failure's one-line reason."""
+    outcome = worker.process(job, JeansOptions(backend=backend, max_pixels=max_pixels), overwrite=True)
+    return outcome.error if outcome.status == "failed" else ""
+
+
+def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) -> None:
+    """Save the folder photo's clicks beside it, then make its output from them as the
+    command line does; JeansError with the reason when that fails."""
+    write_clicks(sidecar_path(job.path), clicks)
+    reason = write_folder_outputs(job, backend, max_pixels)
+    if reason:
+        raise JeansError(reason)
+
+
+def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
+    """The page's clicks (``[{"positive": [[x, y]...], "negative": [...]}...]``), or None for none."""
+    from jeanscv.clicks import parse_clicks
+
+    if data is None or data == []:
+        return None
+    if not isinstance(data, list):
+        raise JeansError('"objects" must be a list of {"positive": [[x, y], ...], "negative": [...]}')
+    objects = [obj for obj in data if isinstance(obj, dict) and obj.get("positive")]
+    if not objects:
+        return None
+    document = {"format": "jeanscv-clicks", "version": 1, "objects": objects}
+    clicks = parse_clicks(json.loads(json.dumps(document)))
+    return Clicks(clicks.objects, (int(size[0]), int(size[1])))
+
+
+def thumbnail(path: Path, side: int) -> bytes:
+    """A JPEG of an output picture with its long side at most ``side`` (for the gallery)."""
+    with Image.open(path) as image:
+        image.draft("RGB", (side, side))
+        image = image.convert("RGBA") if image.mode in ("RGBA", "LA", "P") else image.convert("RGB")
+        image.thumbnail((side, side))
+        if image.mode == "RGBA":
+            white = Image.new("RGB", image.size, (255, 255, 255))
+            white.paste(image, mask=image.getchannel("A"))
+            image = white
+        buffer = io.BytesIO()
+        image.save(buffer, "JPEG", quality=85)
+    return buffer.getvalue()

@@ -1,0 +1,375 @@
+"""``jeanscv serve``: every endpoint through Starlette's test client, the server's
+safety (Host, Origin, size caps, ids, folder confinement, a full pool) and folder mode."""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import write_silhouette_png
+from PIL import Image
+from test_bad_inputs import BAD_FILES
+from test_objects import inside_point, share_on
+
+from testkit.synthetic_photos import two_objects
+
+starlette = pytest.importorskip("starlette")
+from starlette.testclient import TestClient  # noqa: E402
+
+from jeanscv.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
+from jeanscv_cli.serve import engine  # noqa: E402
+from jeanscv_cli.serve.app import Config, create_app  # noqa: E402
+
+BASE = "http://127.0.0.1:8000"
+
+
+@cache
+def scene():
+    return two_objects()
+
+
+def png_bytes(pixels: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    Image.fromarray(pixels).save(buffer, "PNG")
+    return buffer.getvalue()
+
+
+@pytest.fixture
+def make_client():
+    """``make_client(**config)`` -> a started TestClient on a fresh server (closed after the test)."""
+    clients = []
+
+    def make(**overrides):
+        config = Config(port=8000, warm=False, **overrides)
+        client = TestClient(create_app(config), base_url=BASE)
+        client.__enter__()
+        clients.append(client)
+        return client
+
+    yield make
+    for client in clients:
+        client.__exit__(None, None, None)
+
+
+@pytest.fixture
+def client(make_client):
+    return make_client()
+
+
+def upload(client, name: str, data: bytes):
+    return client.post("/api/photos", files={"file": (name, data, "application/octet-stream")})
+
+
+def server_temp(client) -> Path:
+    return client.app.app.state.jeanscv.tmp
+
+
+# ------------------------------------------------------------------ the page
+
+
+def test_page_and_static_files(client):
+    page = client.get("/")
+    assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
+    assert b'src="/static/app.js"' in page.content and b'href="/static/style.css"' in page.content
+    for path, media in (("/static/app.js", "text/javascript"), ("/static/style.css", "text/css")):
+        response = client.get(path)
+        assert response.status_code == 200 and response.headers["content-type"].startswith(media)
+    # Nothing from another host: no absolute URL in the page, its script or its style.
+    for path in ("/", "/static/app.js", "/static/style.css"):
+        text = client.get(path).text
+        assert "http://" not in text.replace("http://www.w3.org/2000/svg", "") and "https://" not in text
+    csp = page.headers["content-security-policy"]
+    assert "default-src 'none'" in csp and "connect-src 'self'" in csp
+    assert page.headers["x-content-type-options"] == "nosniff"
+    assert "access-control-allow-origin" not in page.headers
+
+
+def test_options(client):
+    options = client.get("/api/options").json()
+    assert "jeans" in options["garments"] and options["styles"] == ["denim", "flat"]
+    assert options["postures"] == ["upright", "any"] and options["folder"] is False
+
+
+# ------------------------------------------------------------------ one photo
+
+
+def test_good_photo_then_clicks_then_downloads(client):
+    photo = scene()
+    owner, dog = photo.masks
+    answer = upload(client, "two.png", png_bytes(photo.image))
+    assert answer.status_code == 200, answer.text
+    first = answer.json()
+    assert (first["width"], first["height"]) == (800, 500) and first["kind"] == "photo"
+    assert first["clicks"] is False and first["objects"]
+    preview = client.get(first["preview"])
+    assert preview.headers["content-type"] == "image/jpeg"
+    with Image.open(io.BytesIO(preview.content)) as image:
+        assert image.size == (800, 500)  # long side under the preview's 1280: full size
+    original = client.get(f"/api/photos/{first['photo']}/original")
+    assert original.status_code == 200 and original.content != preview.content
+
+    # A click on the dog: the jeans go onto it, its outline is the dog's.
+    point = inside_point(dog)
+    clicked = client.post(
+        f"/api/photos/{first['photo']}/render",
+        json={"objects": [{"positive": [point], "negative": []}], "options": {"style": "flat"}},
+    )
+    assert clicked.status_code == 200, clicked.text
+    second = clicked.json()
+    assert second["clicks"] is True and len(second["objects"]) == 1
+    assert share_on(second["objects"][0]["jeans"], dog) > 0.9
+    trajectory = np.asarray(second["objects"][0]["trajectory"])
+    assert trajectory.shape == (engine.ANIMATION_FRAMES, 8, 2)
+    np.testing.assert_allclose(trajectory[-1], second["objects"][0]["jeans"], atol=0.06)
+
+    # Two objects: the owner too, each with its garment.
+    both = client.post(
+        f"/api/photos/{first['photo']}/render",
+        json={"objects": [{"positive": [point]}, {"positive": [inside_point(owner)]}]},
+    ).json()
+    assert [share_on(o["jeans"], m) > 0.9 for o, m in zip(both["objects"], (dog, owner))] == [True, True]
+
+    downloads = second["downloads"]
+    image = client.get(downloads["image"])
+    assert image.headers["content-disposition"] == 'attachment; filename="two.jeans.png"'
+    with Image.open(io.BytesIO(image.content)) as full:
+        assert full.size == (800, 500)
+        pixels = np.asarray(full.convert("RGB"))
+    # Flat style: the paper's blue on the dog only.
+    blue = (pixels[..., 2] > 200) & (pixels[..., 0] < 40) & (pixels[..., 1] < 40)
+    assert blue[dog].mean() > 0.1 and not blue[owner].any()
+
+    meme = client.get(downloads["meme"], params={"top": "how would a dog", "bottom": "wear jeans", "side_by_side": "1"})
+    with Image.open(io.BytesIO(meme.content)) as picture:
+        assert picture.size == (1600, 500)
+        top_band = np.asarray(picture.convert("RGB"))[:40, 800:]
+    assert (top_band.min(axis=-1) > 240).mean() > 0.02  # white caption letters
+
+    report = json.loads(client.get(downloads["json"]).content)
+    assert report["objects"][0]["method"] == "clicks" and report["image_size"] == [800, 500]
+    assert client.get(downloads["svg"]).content.startswith(b"<?xml")
+    gif = client.get(downloads["gif"])
+    assert gif.headers["content-type"] == "image/gif" and gif.content[:6] == b"GIF89a"
+    clicks = client.get(downloads["clicks"])
+    assert clicks.headers["content-disposition"] == 'attachment; filename="two.clicks.json"'
+    replay = Clicks.single([point], image_size=(800, 500))
+    from jeanscv.clicks import loads_clicks
+
+    assert loads_clicks(clicks.content) == replay
+    # The automatic result has no clicks file to give.
+    assert client.get(first["downloads"]["clicks"]).status_code == 422
+    assert list(server_temp(client).iterdir()) == []
+
+
+def test_svg_silhouette_and_png_drawing(client):
+    text = b'<svg xmlns="http://www.w3.org/2000/svg" width="512" height="256" viewBox="0 0 512 256">'
+    text += b'<rect x="200" y="20" width="100" height="220" fill="#000"/></svg>'
+    answer = upload(client, "shape.svg", text)
+    assert answer.status_code == 200, answer.text
+    data = answer.json()
+    assert data["kind"] == "silhouette" and (data["width"], data["height"]) == (512, 256)
+    x0, y0, w, h = data["objects"][0]["box"]
+    assert abs(x0 - 200) <= 2 and abs(w - 100) <= 3
+    # A drawing has nothing to click.
+    refused = client.post(f"/api/photos/{data['photo']}/render", json={"objects": [{"positive": [[250, 100]]}]})
+    assert refused.status_code == 422 and "nothing to click" in refused.json()["error"]
+
+
+def test_silhouette_png(client, tmp_path):
+    path = write_silhouette_png(tmp_path / "person.png")
+    answer = upload(client, "person.png", path.read_bytes())
+    assert answer.status_code == 200 and answer.json()["kind"] == "silhouette"
+
+
+@pytest.mark.parametrize("name", sorted(BAD_FILES))
+def test_bad_file_gets_the_command_lines_reason(client, name):
+    data, words = BAD_FILES[name]
+    answer = upload(client, name, data)
+    assert answer.status_code == 422, answer.text
+    reason = answer.json()["error"]
+    assert reason.startswith(f"{name}: ") and words in reason
+    assert "\n" not in reason and "Traceback" not in reason
+    assert list(server_temp(client).iterdir()) == []
+
+
+def test_decompression_bomb_against_the_pixel_cap(make_client):
+    client = make_client(max_pixels=4000)
+    answer = upload(client, "photo.png", png_bytes(scene().image))  # 400000 pixels
+    assert answer.status_code == 422 and "over the --max-pixels limit" in answer.json()["error"]
+
+
+def test_oversized_upload_is_413(make_client):
+    client = make_client(max_upload=100_000)
+    answer = upload(client, "big.png", b"\0" * 200_000)
+    assert answer.status_code == 413 and "upload limit" in answer.json()["error"]
+    # Without a Content-Length the streamed bytes are counted.
+    head = b'--b\r\nContent-Disposition: form-data; name="file"; filename="big.png"\r\n\r\n'
+    chunks = iter([head, b"x" * 60_000, b"x" * 60_000, b"\r\n--b--\r\n"])
+    streamed = client.post("/api/photos", content=chunks, headers={"content-type": "multipart/form-data; boundary=b"})
+    assert streamed.status_code == 413
+
+
+def test_not_a_form_and_bad_json(client):
+    assert client.post("/api/photos", content=b"hello").status_code == 400
+    assert client.post("/api/photos", files={"other": ("a.png", b"x")}).status_code == 400
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    bad = client.post(f"/api/photos/{first['photo']}/render", content=b"{nope")
+    assert bad.status_code == 422 and "not valid JSON" in bad.json()["error"]
+    for body, words in (
+        ({"objects": [{"positive": [[1e9, 5]]}]}, "outside the 800x500 image"),
+        ({"objects": [{"positive": [["a", 5]]}]}, "two numbers"),
+        ({"objects": "x"}, "must be a list"),
+        ({"options": {"style": "gold"}}, "unknown style"),
+        ({"options": {"garment": "../../etc/passwd"}}, "unknown garment"),
+    ):
+        answer = client.post(f"/api/photos/{first['photo']}/render", json=body)
+        assert answer.status_code == 422 and words in answer.json()["error"], (body, answer.text)
+
+
+# ------------------------------------------------------------------ safety
+
+
+@pytest.mark.parametrize("host", ["evil.example", "evil.example:8000", "127.0.0.1:9999", "localhost.evil.example", ""])
+def test_foreign_host_is_refused(client, host):
+    answer = client.get("/", headers={"host": host})
+    assert answer.status_code == 400 and "Host" in answer.json()["error"]
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1:8000", "localhost:8000", "[::1]:8000", "localhost"])
+def test_own_host_names_are_answered(client, host):
+    assert client.get("/api/options", headers={"host": host}).status_code == 200
+
+
+def test_foreign_origin_is_refused(client):
+    for headers in ({"origin": "http://evil.example"}, {"origin": "null"}, {"sec-fetch-site": "cross-site"}):
+        answer = client.post("/api/photos", headers=headers, files={"file": ("a.png", b"x")})
+        assert answer.status_code == 403, headers
+    same = client.post("/api/photos", headers={"origin": BASE}, files={"file": ("a.png", b"x")})
+    assert same.status_code == 422  # let in, then refused as a bad file
+
+
+def test_unknown_ids_and_kinds(client):
+    assert client.get("/api/results/nope/image").status_code == 404
+    assert client.get("/api/photos/nope/original").status_code == 404
+    assert client.post("/api/photos/nope/render", json={}).status_code == 404
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    assert client.get(f"/api/results/{first['result']}/passwd").status_code == 404
+    assert client.get("/static/../cli/serve/app.py").status_code == 404
+    assert client.get("/api/folder").status_code == 404  # not in folder mode
+
+
+def test_full_pool_answers_503(make_client):
+    client = make_client(workers=1, queue=0)
+    state = client.app.app.state.jeanscv
+    release = threading.Event()
+    assert state.pool.submit_background(release.wait)
+    try:
+        answer = upload(client, "two.png", png_bytes(scene().image))
+        assert answer.status_code == 503 and answer.headers["retry-after"] == "2"
+        assert "busy" in answer.json()["error"]
+    finally:
+        release.set()
+    assert list(state.tmp.iterdir()) == []
+
+
+def test_store_is_bounded_in_bytes():
+    from jeanscv_cli.serve.store import Store
+
+    store = Store(100)
+    first = store.put("a", 60)
+    second = store.put("b", 60)
+    assert store.get(first) is None and store.get(second) == "b" and store.nbytes == 60
+    third = store.put("c", 500)  # the newest stays, alone over the cap
+    assert store.get(second) is None and store.get(third) == "c"
+    assert len({first, second, third}) == 3 and len(first) >= 20
+
+
+# ------------------------------------------------------------------ folder mode
+
+
+@pytest.fixture
+def folder(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    Image.fromarray(scene().image).save(photos / "pets.png")
+    write_silhouette_png(photos / "person.png")
+    (photos / "notes.txt").write_text("not a photo")
+    (tmp_path / "secret.png").write_bytes(png_bytes(scene().image))
+    (photos / "link.png").symlink_to(tmp_path / "secret.png")  # points out of the folder: not served
+    return photos
+
+
+def test_folder_gallery_and_confinement(make_client, folder):
+    client = make_client(folder=folder)
+    listing = client.get("/api/folder").json()
+    assert [item["name"] for item in listing["items"]] == ["person.png", "pets.png"]
+    assert all(not item["output"] for item in listing["items"])
+    thumb = client.get(listing["items"][0]["thumb"])
+    assert thumb.status_code == 200 and thumb.headers["content-type"] == "image/jpeg"
+    assert (folder / "person.jeans.png").is_file()  # the command line's output, made on demand and kept
+    for path in (
+        "/api/folder/2/thumb",
+        "/api/folder/-1/thumb",
+        "/api/folder/..%2F..%2Fsecret.png/thumb",
+        "/api/folder/../secret.png/thumb",
+        "/api/folder/pets.png/thumb",
+        "/api/folder/%2e%2e/thumb",
+    ):
+        assert client.get(path).status_code == 404, path
+    assert client.post("/api/folder/..%2Fsecret.png/open").status_code == 404
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["photos", "secret.png"]
+
+
+def test_folder_fix_with_clicks(make_client, folder):
+    client = make_client(folder=folder)
+    dog = scene().masks[1]
+    items = client.get("/api/folder").json()["items"]
+    index = next(item["item"] for item in items if item["name"] == "pets.png")
+    opened = client.post(f"/api/folder/{index}/open")
+    assert opened.status_code == 200, opened.text
+    photo = opened.json()["photo"]
+    point = inside_point(dog)
+    saved = client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": [{"positive": [point]}]})
+    assert saved.status_code == 200, saved.text
+    assert saved.json()["clicks"] is True and saved.json()["output"] is True
+    assert read_clicks(sidecar_path(folder / "pets.png")) == Clicks.single([point], image_size=(800, 500))
+    with Image.open(folder / "pets.jeans.png") as output:
+        pixels = np.asarray(output.convert("RGB"))
+    changed = np.any(pixels != scene().image, axis=-1)
+    assert changed[dog].mean() > 0.1 and not changed[scene().masks[0]].any()
+    # Opened again, the photo comes back with its saved clicks.
+    again = client.post(f"/api/folder/{index}/open").json()
+    assert again["clicks"] is True and again["saved_clicks"] == [{"positive": [list(point)], "negative": []}]
+    # Another folder item's name cannot take these clicks.
+    other = client.post("/api/folder/0/clicks", json={"photo": photo, "objects": [{"positive": [point]}]})
+    assert other.status_code == 422
+
+
+def test_folder_clicks_replay_through_the_command_line(make_client, folder, run_cli):
+    """A clicks file saved by the page gives the same output through ``jeanscv FOLDER``,
+    and the page's own full-size picture of those clicks is that output too."""
+    client = make_client(folder=folder)
+    items = client.get("/api/folder").json()["items"]
+    index = next(item["item"] for item in items if item["name"] == "pets.png")
+    photo = client.post(f"/api/folder/{index}/open").json()["photo"]
+    objects = [{"positive": [inside_point(scene().masks[1])]}, {"positive": [inside_point(scene().masks[0])]}]
+    page = client.post(f"/api/photos/{photo}/render", json={"objects": objects}).json()
+    on_page = client.get(page["downloads"]["image"]).content
+    assert client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": objects}).status_code == 200
+    served = (folder / "pets.jeans.png").read_bytes()
+    (folder / "pets.jeans.png").unlink()
+    result = run_cli(folder, "-q")  # the batch picks the saved clicks up
+    assert result.exit_code == 0, result.stderr
+    with Image.open(folder / "pets.jeans.png") as cli_output:
+        expected = np.asarray(cli_output)
+    for picture in (served, on_page):
+        with Image.open(io.BytesIO(picture)) as image:
+            assert np.array_equal(np.asarray(image), expected)
+    # The clicks dressed both objects, the dog first.
+    changed = np.any(expected[..., :3] != scene().image, axis=-1)
+    assert all(changed[mask].mean() > 0.1 for mask in scene().masks)

@@ -1,0 +1,175 @@
+"""``jeanscv serve`` end to end in a real browser: Debian's headless Chromium driven by
+Playwright (never ``playwright install``: no browser is downloaded).
+
+Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
+With ``JEANSCV_SCREENSHOT=PATH`` the test also saves the page in use there
+(``docs/serve.jpg`` is made so: see ``bench/serve_screenshot.py``).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import threading
+import time
+from pathlib import Path
+from urllib.parse import urlparse
+
+import numpy as np
+import pytest
+from PIL import Image
+from test_objects import inside_point, share_on
+from test_serve import png_bytes
+from test_serve_cli import free_port
+
+from testkit.synthetic_photos import two_objects
+
+CHROMIUM = os.environ.get("JEANSCV_CHROMIUM", "/usr/bin/chromium")
+
+
+def _browser_missing() -> str:
+    if not Path(CHROMIUM).is_file():
+        return f"{CHROMIUM} is not installed (apt-get install chromium)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return "playwright is not installed (pip install -e '.[test]')"
+    return ""
+
+
+if _browser_missing() and not os.environ.get("CI"):
+    pytest.skip(_browser_missing(), allow_module_level=True)
+
+
+@pytest.fixture
+def server():
+    """A real ``jeanscv serve`` (uvicorn) on a free loopback port, in a thread."""
+    import uvicorn
+
+    from jeanscv_cli.serve.app import Config, create_app
+
+    port = free_port()
+    app = create_app(Config(port=port))
+    uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", lifespan="on"))
+    thread = threading.Thread(target=uv.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not uv.started:
+        assert time.monotonic() < deadline and thread.is_alive(), "the server did not start"
+        time.sleep(0.05)
+    yield f"http://127.0.0.1:{port}"
+    uv.should_exit = True
+    thread.join(timeout=15)
+
+
+def test_drop_click_caption_download(server, tmp_path):
+    problem = _browser_missing()
+    assert not problem, problem  # in CI: fail instead of skipping
+    from playwright.sync_api import sync_playwright
+
+    photo = two_objects()
+    photo_masks = dict(zip(("person", "dog"), photo.masks))
+    requests, problems, renders = [], [], []
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"], headless=True)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 860}, accept_downloads=True)
+            page.on("request", lambda request: requests.append(request.url))
+            page.on("console", lambda message: message.type == "error" and problems.append(message.text))
+            page.on("pageerror", lambda error: problems.append(str(error)))
+
+            def answer(response):
+                if response.request.method == "POST" and response.url.startswith(server + "/api/"):
+                    renders.append((urlparse(response.url).path, response.json()))
+
+            page.on("response", answer)
+            page.goto(server + "/")
+            page.wait_for_selector("#garment option", state="attached")
+
+            # Drop the photo on the page, as a person drags it from their files.
+            data = base64.b64encode(png_bytes(photo.image)).decode()
+            page.evaluate(
+                """async (data) => {
+                    const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
+                    const transfer = new DataTransfer();
+                    transfer.items.add(new File([bytes], "pets.png", { type: "image/png" }));
+                    document.getElementById("drop").dispatchEvent(
+                        new DragEvent("drop", { dataTransfer: transfer, bubbles: true, cancelable: true }));
+                }""",
+                data,
+            )
+            page.wait_for_function(
+                "() => document.getElementById('result').complete && "
+                "document.getElementById('result').naturalWidth > 0",
+                timeout=60_000,
+            )
+            deadline = time.monotonic() + 30
+            while not renders:
+                assert time.monotonic() < deadline, "no answer to the upload"
+                page.wait_for_timeout(50)
+            path, first = renders[-1]
+            assert path == "/api/photos"
+            assert first["clicks"] is False and first["objects"]
+            assert page.locator("#overlay path.outline").count() >= 1  # the subject's outline is drawn
+            # The other object than the one the automatic subject dressed most gets the click.
+            auto = {name: share_on(first["objects"][0]["jeans"], mask) for name, mask in photo_masks.items()}
+            target = min(auto, key=auto.get)
+            other = "person" if target == "dog" else "dog"
+
+            # Click it: the jeans move onto it.
+            x, y = inside_point(photo_masks[target])
+            box = page.locator("#result").bounding_box()
+            page.mouse.click(box["x"] + x / 800 * box["width"], box["y"] + y / 500 * box["height"])
+            deadline = time.monotonic() + 60
+            while renders[-1][0] == "/api/photos":
+                assert time.monotonic() < deadline, "no render after the click"
+                page.wait_for_timeout(50)
+            path, clicked = renders[-1]
+            assert path.endswith("/render"), renders
+            assert clicked["clicks"] is True
+            on_target = share_on(clicked["objects"][0]["jeans"], photo_masks[target])
+            assert on_target > 0.9 and on_target > auto[target] + 0.2, (auto, on_target)
+            page.wait_for_function(
+                f"() => document.getElementById('result').src.endsWith({json.dumps(clicked['preview'])})"
+            )
+            page.wait_for_function("() => document.getElementById('result').complete")
+            shown = page.evaluate("""() => {
+                const img = document.getElementById('result');
+                const canvas = document.createElement('canvas');
+                canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
+                const context = canvas.getContext('2d');
+                context.drawImage(img, 0, 0);
+                return Array.from(context.getImageData(0, 0, canvas.width, canvas.height).data);
+            }""")
+            pixels = np.asarray(shown, np.uint8).reshape(500, 800, 4)[..., :3].astype(int)
+            changed = np.abs(pixels - photo.image.astype(int)).max(axis=-1) > 40  # beyond JPEG noise
+            assert changed[photo_masks[target]].mean() > 0.1 and changed[photo_masks[other]].mean() < 0.01
+
+            # A caption, previewed live, then the meme downloaded with it.
+            assert page.locator("#overlay circle.click.pos").count() == 1  # the click, marked
+            assert [path for path, _ in renders].count("/api/photos") == 1  # one drop, one upload
+            page.fill("#top", f"how would a {target}")
+            page.fill("#bottom", "wear jeans")
+            assert page.inner_text("#cap-top").strip().lower() == f"how would a {target}"
+            if os.environ.get("JEANSCV_SCREENSHOT"):
+                page.wait_for_timeout(300)
+                shot = os.environ["JEANSCV_SCREENSHOT"]
+                jpeg = shot.lower().endswith((".jpg", ".jpeg"))
+                page.screenshot(path=shot, type="jpeg" if jpeg else "png", quality=88 if jpeg else None)
+            with page.expect_download(timeout=60_000) as download:
+                page.click("#dl-meme")
+            saved = tmp_path / download.value.suggested_filename
+            download.value.save_as(saved)
+            assert saved.name == "pets.jeans.png"
+            with Image.open(saved) as meme:
+                assert meme.size == (800, 500)
+                meme_pixels = np.asarray(meme.convert("RGB"))
+            captioned = (meme_pixels[:70].min(axis=-1) > 240) & (photo.image[:70].min(axis=-1) < 200)
+            assert captioned.mean() > 0.02  # white letters along the top
+
+            hosts = {urlparse(url).netloc for url in requests if not url.startswith(("data:", "blob:"))}
+            assert hosts == {urlparse(server).netloc}, hosts
+            assert problems == []
+        finally:
+            browser.close()
