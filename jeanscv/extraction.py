@@ -108,12 +108,7 @@ def extract_silhouettes(
 
     height, width = pixels.shape[:2]
     Clicks(tuple(wanted)).check((width, height))
-    session = ClickSession(pixels)
-    chosen = []
-    for obj in wanted:
-        silhouette = _framed(session.segment(obj.positive, obj.negative), obj.positive[0])
-        silhouette.details["clicks"] = obj.to_json()
-        chosen.append(silhouette)
+    chosen = clicked_silhouettes(ClickSession(pixels), wanted)
     if objects == "all":
         try:
             main = extract_silhouette(pixels, method, threshold=threshold, rect=rect)
@@ -127,6 +122,20 @@ def extract_silhouettes(
             if np.count_nonzero(obj.mask & ~covered) > 0.5 * obj.area:
                 chosen.append(_object_silhouette(obj, main))
     return chosen
+
+
+def clicked_silhouettes(session, objects) -> list[Silhouette]:
+    """One framed silhouette per object's clicks (:class:`jeanscv.clicks.ObjectClicks`),
+    in order, segmented by ``session`` (a
+    :class:`~jeanscv.silhouette.interactive.ClickSession` of the photo, which a caller
+    that clicks often keeps); ``details`` holds the object's ``clicks``, its first
+    positive click as ``point`` and its ``box``."""
+    found = []
+    for obj in objects:
+        silhouette = _framed(session.segment(obj.positive, obj.negative), obj.positive[0])
+        silhouette.details["clicks"] = obj.to_json()
+        found.append(silhouette)
+    return found
 
 
 def split_objects(mask: np.ndarray):

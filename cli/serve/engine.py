@@ -31,7 +31,7 @@ from jeanscv import api
 from jeanscv.clicks import Clicks, read_clicks, sidecar_path, write_clicks
 from jeanscv.errors import JeansError
 from jeanscv.framing import Framing
-from jeanscv.options import JeansOptions
+from jeanscv.options import POSTURES, STYLES, JeansOptions
 from jeanscv.runner import encode_picture, report_text
 from jeanscv.silhouettes import box_of
 
@@ -47,8 +47,6 @@ ANIMATION_FRAMES = 40
 CONTOUR_TOLERANCE = 1.5
 #: Fitted results kept per photo (the latest clicks, and a download's): each holds full-size masks.
 FITS_KEPT = 3
-STYLES = ("denim", "flat")
-POSTURES = ("upright", "any")
 
 
 @dataclass(frozen=True)
@@ -228,20 +226,11 @@ def _compact(silhouette):
 def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
     """One full-size silhouette per clicked object, in order, as
     :func:`jeanscv.extraction.extract_silhouettes` makes them, from the photo's own session."""
-    from jeanscv.extraction import _framed
+    from jeanscv.extraction import clicked_silhouettes
 
     clicks.check(photo.size)
     with photo.lock:
-        session = photo.session()
-        found = []
-        for index, obj in enumerate(clicks.objects):
-            segmentation = session.segment(obj.positive, obj.negative)
-            if not segmentation.mask.any():
-                raise JeansError(f"object {index + 1}: the clicks give an empty mask")
-            silhouette = _framed(segmentation, obj.positive[0])
-            silhouette.details["clicks"] = obj.to_json()
-            found.append(silhouette)
-    return found
+        return clicked_silhouettes(photo.session(), clicks.objects)
 
 
 def _clicks_key(clicks: Clicks | None) -> tuple:
