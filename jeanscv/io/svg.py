@@ -244,8 +244,8 @@ def _parse_xml(data: bytes) -> _Node:
         parser.Parse(data, True)
     except expat.ExpatError as exc:
         raise JeansError(f"not an SVG file: XML {exc}") from None
-    except (ValueError, UnicodeError) as exc:
-        raise JeansError(f"not an SVG file: {exc}") from None
+    except (ValueError, UnicodeError, LookupError) as exc:  # LookupError: an unknown declared encoding
+        raise JeansError(f"not an SVG file: {' '.join(str(exc).split())}") from None
     if not roots or roots[0].tag != "svg":
         raise JeansError("not an SVG file: the root element is not <svg>")
     return roots[0]
