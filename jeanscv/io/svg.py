@@ -117,10 +117,14 @@ def read_svg_silhouette_from_bytes(data: bytes, canvas_size: int = 256, supersam
     )
 
     shapes: list[_Shape] = []
-    _Walker(root, shapes, (width, height)).walk(root, user_to_canvas, _DEFAULT_STYLE, 0)
-    if not shapes:
-        raise JeansError("SVG has no filled path")
-    alpha = _rasterize_shapes(shapes, canvas_size, supersample)
+    # Finite transforms can compose to inf or nan (matrix(1e300 ...) twice); the
+    # coordinate check in _rasterize_shapes refuses those, so numpy's warning would be a
+    # second line for one bad file.
+    with np.errstate(all="ignore"):
+        _Walker(root, shapes, (width, height)).walk(root, user_to_canvas, _DEFAULT_STYLE, 0)
+        if not shapes:
+            raise JeansError("SVG has no filled path")
+        alpha = _rasterize_shapes(shapes, canvas_size, supersample)
     if not np.any(alpha):
         raise JeansError(
             "silhouette is empty: the path encloses no area inside the viewBox (or is thinner than a sample)"
