@@ -445,6 +445,10 @@ def _main(
             outcomes[job.index] = outcome
             progress.finish(outcome)
 
+    from .runs import remove_leftovers
+
+    # Temporary files of a run killed mid-write (SIGKILL, power loss): a live run's are locked and kept.
+    remove_leftovers([path for job in pending for path in job.outputs.values()] + ([report] if report else []))
     code = 0
     previous = _install_sigterm()
     try:

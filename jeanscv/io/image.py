@@ -24,6 +24,7 @@ import numpy as np
 from PIL import Image, ImageFile, UnidentifiedImageError
 
 from jeanscv.errors import JeansError
+from jeanscv.io.files import open_regular
 
 RAW_EXTENSIONS: frozenset[str] = frozenset(
     {
@@ -133,10 +134,6 @@ def load_image(path: str | Path, max_pixels: int = 100_000_000, raw_half_size: b
     if max_pixels < 1:
         raise JeansError("--max-pixels must be at least 1")
     path = Path(path)
-    if not path.exists():
-        raise JeansError("file not found")
-    if path.is_dir():
-        raise JeansError("is a folder, not an image file")
     file = _open_nonempty(path)
     if path.suffix.lower() in RAW_EXTENSIONS:
         file.close()  # LibRaw opens the file itself
@@ -151,12 +148,21 @@ def load_image(path: str | Path, max_pixels: int = 100_000_000, raw_half_size: b
 
 
 def _open_nonempty(path: Path) -> BinaryIO:
-    """Open ``path`` for reading, raising for unreadable or zero-byte files."""
+    """Open ``path`` for reading, raising for missing, unreadable, zero-byte and
+    non-regular files (a FIFO would block the read forever, a device never end)."""
     try:
-        file = path.open("rb")
+        file = open_regular(path)
+    except FileNotFoundError:
+        raise JeansError("file not found") from None
+    except IsADirectoryError:
+        raise JeansError("is a folder, not an image file") from None
+    except OSError as exc:
+        raise JeansError(f"cannot read file: {_os_reason(exc)}") from exc
+    try:
         empty = not file.read(1)
         file.seek(0)
     except OSError as exc:
+        file.close()
         raise JeansError(f"cannot read file: {_os_reason(exc)}") from exc
     if empty:
         file.close()

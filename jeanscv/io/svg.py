@@ -38,6 +38,7 @@ import numpy as np
 
 from jeanscv.errors import JeansError
 from jeanscv.geometry import invert_affine
+from jeanscv.io.files import open_regular
 
 #: File extensions read as SVG silhouettes.
 SVG_EXTENSIONS = frozenset({".svg", ".svgz"})
@@ -92,7 +93,7 @@ class SvgSilhouette:
 def read_svg_silhouette(path: str | Path, canvas_size: int = 256, supersample: int = 4) -> SvgSilhouette:
     """Read the SVG (or gzipped ``.svgz``) at ``path`` and rasterise its filled shapes."""
     try:
-        with open(path, "rb") as handle:
+        with open_regular(path) as handle:
             data = handle.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise JeansError(f"not an SVG file: cannot read it ({exc.strerror or exc})") from None
