@@ -330,7 +330,7 @@ def _main(
         except JeansError as exc:
             raise click.BadParameter(one_line(exc), ctx, param_hint=hint) from None
 
-    from jeanscv._fast import kernels_cached
+    from jeanscv._fast import kernel_cache_dir, kernels_cached
 
     try:
         device = resolve_device(device)
@@ -387,6 +387,7 @@ def _main(
     )
     if backend == "fast" and kernels_cached() is False:
         progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
+        progress.info(f"(numba keeps them in {kernel_cache_dir()})")
     records: list[dict] = []
     for problem in found.problems:
         progress.error(problem.display, problem.reason)

@@ -402,3 +402,48 @@ def test_big_folder_counts(tmp_path, run_cli):
     assert result.exit_code == 1
     assert len(error_lines(result.stderr)) == 300
     assert result.stderr.splitlines()[-1].startswith("2 ok, 300 failed, 100 skipped in ")
+
+
+# ------------------------------------------------------- read-only install
+
+
+def test_kernel_cache_of_a_read_only_install(tmp_path, monkeypatch):
+    """Where numba keeps the kernels: beside them when writable, else the per-user
+    cache, else (a service account without a home) a private temporary folder that
+    NUMBA_CACHE_DIR is set to. 'Cannot be written' is made real for root too: a regular
+    file where the folder should be."""
+    from jeanscv._fast.cache import _subpath, kernel_cache_dir
+
+    kernels = tmp_path / "site-packages" / "jeanscv" / "_fast"
+    kernels.mkdir(parents=True)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home-cache"))
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    assert kernel_cache_dir(kernels) == kernels / "__pycache__"
+
+    (kernels / "__pycache__").rmdir()
+    (kernels / "__pycache__").write_bytes(b"")  # the installation cannot be written
+    user = tmp_path / "home-cache" / "numba" / _subpath(kernels)
+    assert kernel_cache_dir(kernels) == user
+    assert user.is_dir()
+
+    (tmp_path / "nohome").write_bytes(b"")  # neither can the home folder
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "nohome"))
+    private = tmp_path / "tmp" / f"jeanscv-numba-{os.getuid()}"
+    assert kernel_cache_dir(kernels) == private / _subpath(kernels)
+    assert os.environ["NUMBA_CACHE_DIR"] == str(private)
+    assert stat.S_IMODE(private.stat().st_mode) == 0o700
+    assert kernel_cache_dir(kernels) == private / _subpath(kernels)  # the same on the next call
+
+
+def test_private_cache_folder_is_not_taken_from_someone_else(tmp_path, monkeypatch):
+    """A folder of that name another user could write is not trusted (code is loaded from it)."""
+    from jeanscv._fast.cache import _private_temporary_root
+
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    planted = tmp_path / f"jeanscv-numba-{os.getuid()}"
+    planted.mkdir(mode=0o777)
+    planted.chmod(0o777)
+    root = _private_temporary_root()
+    assert root != planted and root.parent == tmp_path and stat.S_IMODE(root.stat().st_mode) == 0o700
