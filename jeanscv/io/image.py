@@ -83,8 +83,9 @@ _FORMAT_NAMES = {"MPO": "JPEG", "DIB": "BMP"}
 # loads cannot see each other's.
 _PILLOW_LOCK = threading.Lock()
 
-# Errors Pillow's decoders raise for damaged data.
-_DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error, IndexError)
+# Errors Pillow's decoders raise for damaged data (TypeError: a TIFF whose StripOffsets
+# are rationals or floats, found by bench/fuzz.py).
+_DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error, IndexError, TypeError)
 
 # LibRaw's ``flip`` code -> EXIF orientation (LibRaw maps EXIF 1..8 to "50132467").
 _LIBRAW_FLIP_TO_EXIF = {0: 1, 1: 2, 2: 4, 3: 3, 4: 5, 5: 8, 6: 6, 7: 7}
@@ -254,7 +255,7 @@ def _exif_orientation(img: Image.Image) -> int:
     """EXIF orientation 1..8 (from EXIF, TIFF tags or XMP); 1 when absent or invalid."""
     try:
         orientation = int(img.getexif().get(0x0112, 1))
-    except (*_DECODE_ERRORS, TypeError):
+    except _DECODE_ERRORS:
         return 1  # unreadable metadata: show the pixels as stored
     return orientation if 1 <= orientation <= 8 else 1
 
@@ -450,7 +451,14 @@ def _load_raw(path: Path, max_pixels: int, half_size: bool) -> LoadedImage:
             raise JeansError("not a readable RAW file: raw data truncated or corrupt") from exc
     finally:
         raw.close()
-    pixels = np.ascontiguousarray(rgb, dtype=np.uint8)
+    pixels = np.asarray(rgb, dtype=np.uint8)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    if pixels.ndim != 3 or pixels.shape[2] not in (1, 3):
+        raise JeansError("not a readable RAW file: unsupported colour layout")
+    if pixels.shape[2] == 1:  # a damaged DNG can demosaic to one channel (found by bench/fuzz.py)
+        pixels = np.repeat(pixels, 3, axis=2)
+    pixels = np.ascontiguousarray(pixels)
     return LoadedImage(
         pixels=pixels,
         alpha_meaningful=False,
