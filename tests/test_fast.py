@@ -220,7 +220,8 @@ def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
         import numpy as np
         from jeanscv import _fast
         from jeanscv._fast.objective import descend, objective
-            from jeanscv.garments import JEANS
+        from jeanscv.adam import BatchAdam
+        from jeanscv.garments import JEANS
         kernel = _fast.Objective(JEANS, "all", {"coverage": 1.0})
         kernel(JEANS.template[None], np.ones((256, 256)))
         kernel.descend(BatchAdam(JEANS.template[None] / 256, 0.01), np.ones((256, 256)), 2, 2.5)
