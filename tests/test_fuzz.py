@@ -23,15 +23,15 @@ REGRESSIONS = Path(__file__).parent / "data" / "fuzz"
 
 # Cases per target: a few seconds each on the 2-core CI machine.
 EXAMPLES = {
-    "svg": 120,
-    "path_data": 120,
-    "image": 250,
-    "mask": 100,
-    "clicks": 80,
-    "clicks_file": 60,
-    "garment": 150,
-    "captions": 80,
-    "cli": 15,
+    "svg": 80,
+    "path_data": 80,
+    "image": 150,
+    "mask": 60,
+    "clicks": 50,
+    "clicks_file": 40,
+    "garment": 100,
+    "captions": 50,
+    "cli": 10,
 }
 
 

@@ -23,7 +23,7 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="re
 
 # Torch backend: no kernel compilation in a fresh process; enough iterations that a kill
 # usually lands mid-batch (the assertions hold wherever it lands).
-SLOW = ("--iterations", "30", "--starts", "1", "--backend", "torch", "-q")
+SLOW = ("--iterations", "12", "--starts", "1", "--backend", "torch", "-q")
 COUNT = 5
 
 
