@@ -307,7 +307,7 @@ def _main(
     """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
-    from jeanscv._fast import kernels_cached
+    from jeanscv._fast import kernel_cache_dir, kernels_cached
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
     from jeanscv.runner import one_line
@@ -344,6 +344,7 @@ def _main(
     )
     if backend == "fast" and kernels_cached() is False:
         progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
+        progress.info(f"(numba keeps them in {kernel_cache_dir()})")
     records = _unprocessed(found, progress)
     pending, outcomes = _split_finished(found.jobs, options, overwrite, progress)
     return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
@@ -417,11 +418,16 @@ def _split_finished(jobs, options, overwrite: bool, progress) -> tuple[list, dic
 def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcomes, records, report) -> int:
     """Process ``pending`` (in ``workers`` processes when several), summarise, write the
     ``--report``; the exit status."""
+    from .pool import run_parallel
+    from .runs import remove_leftovers
+
+    # Temporary files of a run killed mid-write (SIGKILL, power loss): a live run's are locked and kept.
+    remove_leftovers([path for job in pending for path in job.outputs.values()] + ([report] if report else []))
     code = 0
     previous = _install_sigterm()
     try:
         if workers > 1 and len(pending) > 1:
-            _run_parallel(pending, options, overwrite, min(workers, len(pending)), progress, outcomes)
+            run_parallel(pending, options, overwrite, min(workers, len(pending)), progress, outcomes)
         else:
             _run_serial(pending, options, overwrite, progress, outcomes)
     except KeyboardInterrupt:
@@ -503,55 +509,6 @@ def _run_serial(pending, options, overwrite: bool, progress, outcomes) -> None:
         outcome = process(job, options, overwrite)
         outcomes[job.index] = outcome
         progress.finish(outcome)
-
-
-def _run_parallel(pending, options, overwrite: bool, workers: int, progress, outcomes) -> None:
-    """Process ``pending`` in ``workers`` spawned processes, each with its share of the cores."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    from jeanscv._command import worker_init
-
-    from .worker import Outcome, process_in_worker
-
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    pool = ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=worker_init,
-        initargs=(threads,),
-    )
-    clean = False
-    try:
-        futures = {pool.submit(process_in_worker, job, options, overwrite): job for job in pending}
-        progress.start(f"{workers} workers")
-        for future in as_completed(futures):
-            job = futures[future]
-            try:
-                outcome = future.result()
-            except Exception as exc:  # noqa: BLE001 - a worker died (crash, killed): this file failed
-                outcome = Outcome(job.index, job.display, "failed", error=f"worker process died ({type(exc).__name__})")
-            outcomes[job.index] = outcome
-            progress.finish(outcome)
-        clean = True
-    finally:
-        if clean:
-            pool.shutdown(wait=True)
-        else:
-            _stop_pool(pool)
-
-
-def _stop_pool(pool) -> None:
-    """Cancel queued files and stop the workers; a worker mid-file removes its temporary file."""
-    processes = list(getattr(pool, "_processes", {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        if process.is_alive():
-            process.terminate()  # SIGTERM: see worker.init_worker
-    for process in processes:
-        process.join(timeout=10)
-        if process.is_alive():
-            process.kill()
 
 
 def _write_report(path: Path, records: list[dict], progress) -> bool:

@@ -16,6 +16,7 @@ from jeanscv.options import JeansOptions
 from jeanscv.runner import encode_picture, failure_reason, report_text
 
 from .discover import Job
+from .runs import claim, stop_with_parent
 
 
 @dataclass
@@ -190,7 +191,13 @@ def process(job: Job, options: JeansOptions, overwrite: bool = False) -> Outcome
     outcome = Outcome(job.index, job.display, "ok", output=str(job.outputs["image"]))
     _BUSY = True
     try:
-        _run(job, options, overwrite, outcome)
+        # Another jeanscv run on the same folder may be making this file's outputs: wait
+        # for it, then skip what it made (the job was pending when this run began).
+        with claim(job.path):
+            if wanted_outputs(job, options, overwrite):
+                _run(job, options, overwrite, outcome)
+            else:
+                outcome.status, outcome.error = "skipped", "made by another jeanscv run meanwhile"
     except Exception as exc:  # noqa: BLE001 - every failure becomes one line for this file
         from jeanscv.errors import OptionError
 
@@ -241,6 +248,7 @@ def init_worker(threads: int) -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
+    stop_with_parent()
     reuse_freed_memory()
     import cv2
 

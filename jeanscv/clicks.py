@@ -200,11 +200,14 @@ def loads_clicks(text: str | bytes) -> Clicks:
 
 def read_clicks(path: str | os.PathLike) -> Clicks:
     """Read a clicks file; JeansError naming the reason when it cannot be used."""
+    from .io.files import open_regular
+
     path = Path(path)
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
+        with open_regular(path) as file:  # a FIFO would block the read forever
+            data = file.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
             raise JeansError(f"clicks file is larger than {MAX_FILE_BYTES // 1024} KiB")
-        data = path.read_bytes()
     except FileNotFoundError:
         raise JeansError("clicks file not found") from None
     except IsADirectoryError:

@@ -25,18 +25,20 @@ import os
 import re
 from dataclasses import dataclass, field
 from itertools import combinations
-from pathlib import Path
 
 import numpy as np
 
 from .errors import JeansError
 from .geometry import CANVAS_SIZE
+from .io.files import open_regular
 
 #: Detail sets a garment asks the compositor for (``Garment.extra["style"]``): ``jeans``
 #: and ``shorts`` have a fly, pockets, belt loops, leg hems and crotch whiskers;
 #: ``skirt`` the same without whiskers (it has no crotch); ``plain`` only seams and hems.
 DRAW_STYLES = ("jeans", "shorts", "skirt", "plain")
 
+#: Bigger garment files are refused before parsing (the built-in ones are under 1 KiB).
+_MAX_TOML_BYTES = 1 << 20
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _TOML_KEYS = {"name", "description", "vertices", "open_edges", "waist", "draw"}
 _DRAW_KEYS = {"style", "colour", "color"}
@@ -140,7 +142,11 @@ class Garment:
         """Read a garment TOML file; every problem is a one-line :class:`JeansError`."""
         toml = _toml_module()
         try:
-            text = Path(path).read_bytes().decode("utf-8")
+            with open_regular(path) as file:  # a FIFO would block the read forever
+                data = file.read(_MAX_TOML_BYTES + 1)
+            if len(data) > _MAX_TOML_BYTES:
+                raise JeansError(f"garment file is larger than {_MAX_TOML_BYTES // 1024} KiB")
+            text = data.decode("utf-8")
         except OSError as exc:
             raise JeansError(f"cannot read garment file: {(exc.strerror or str(exc)).lower()}") from None
         except UnicodeDecodeError:

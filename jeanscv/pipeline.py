@@ -95,6 +95,8 @@ def prepare_input(
     mask = options.mask
     if isinstance(mask, (str, os.PathLike)):
         mask = load_mask(mask, options.max_pixels)
+    if isinstance(options.clicks, (str, os.PathLike)):
+        options = options.replace(clicks=_read_clicks(options.clicks))  # read first: any input reports a bad file
     loaded = None
     if isinstance(source, (str, os.PathLike)):
         if Path(source).suffix.lower() in SVG_EXTENSIONS:
@@ -137,21 +139,26 @@ def prepare_input(
 
 def _clicks(options: JeansOptions, shown: tuple[int, int]):
     """Every object's clicks of ``options`` (``points`` and ``background_points`` first,
-    then ``clicks``, read from its file when it is a path), checked against the photo's
-    size as displayed, ``shown`` = (width, height)."""
-    from .clicks import Clicks, read_clicks
+    then ``clicks``), checked against the photo's size as displayed, ``shown`` =
+    (width, height)."""
+    from .clicks import Clicks
 
     clicks = options.clicks
-    if isinstance(clicks, (str, os.PathLike)):
-        try:
-            clicks = read_clicks(clicks)
-        except JeansError as exc:
-            raise JeansError(f"clicks file {Path(clicks).name}: {exc}") from None
     found = Clicks(
         tuple(object_clicks(options.points, options.background_points, clicks)), getattr(clicks, "image_size", None)
     )
     found.check(shown)
     return Clicks(found.objects, tuple(shown))
+
+
+def _read_clicks(path: str | os.PathLike):
+    """A clicks file, or JeansError naming it and the reason."""
+    from .clicks import read_clicks
+
+    try:
+        return read_clicks(path)
+    except JeansError as exc:
+        raise JeansError(f"clicks file {Path(path).name}: {exc}") from None
 
 
 def _to_decoded(points, original_size: tuple[int, int], size: tuple[int, int]) -> list[tuple[float, float]]:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -52,10 +51,17 @@ def silhouette_from_alpha(alpha: np.ndarray, method: str) -> Silhouette:
 
 def read_svg(path: str | os.PathLike) -> Silhouette:
     """An SVG silhouette: its 256 canvas is the viewBox, fitted with aspect kept."""
+    from .io.files import open_regular
     from .io.svg import read_svg_silhouette
 
-    if not Path(path).is_file():
-        raise JeansError("file not found" if not Path(path).exists() else "not a file")
+    try:
+        open_regular(path).close()
+    except FileNotFoundError:
+        raise JeansError("file not found") from None
+    except IsADirectoryError:
+        raise JeansError("not a file") from None
+    except OSError as exc:  # a FIFO, a device, a symlink loop, no permission
+        raise JeansError(f"cannot read file: {(exc.strerror or str(exc)).lower()}") from None
     svg = read_svg_silhouette(path)
     framing = Framing(
         (float(svg.canvas_to_image[0, 2]), float(svg.canvas_to_image[1, 2])),

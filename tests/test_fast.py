@@ -260,16 +260,21 @@ def test_a_cpu_photo_run_never_imports_torch(tmp_path):
 
 def test_kernels_cached_looks_for_the_step_loop_index(tmp_path, monkeypatch):
     """A fresh install has no index of the step loop (its first fit compiles for about
-    half a minute, which the command line announces); a cache elsewhere is not looked into."""
+    half a minute, which the command line announces); with NUMBA_CACHE_DIR, numba's
+    folder for these kernels under it is looked into."""
     from jeanscv._fast import kernels_cached
+    from jeanscv._fast.cache import _subpath
 
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     assert kernels_cached(tmp_path) is False
-    (tmp_path / "__pycache__").mkdir()
     (tmp_path / "__pycache__" / "objective.descend-593.py311.nbi").write_bytes(b"")
     assert kernels_cached(tmp_path) is True
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    assert kernels_cached(tmp_path) is None
+    elsewhere = tmp_path / "cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(elsewhere))
+    assert kernels_cached(tmp_path) is False
+    (elsewhere / _subpath(tmp_path)).mkdir(parents=True)
+    (elsewhere / _subpath(tmp_path) / "objective.descend-593.py311.nbi").write_bytes(b"")
+    assert kernels_cached(tmp_path) is True
 
 
 def test_command_line_announces_a_first_compilation(tmp_path, run_cli, monkeypatch):

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 import threading
 from pathlib import Path
 
@@ -22,22 +21,26 @@ import numpy as np
 
 from ..device import fast_available
 from ..terms import STROKE_HALF_WIDTH, TERM_NAMES, affine_residual_operator
+from .cache import kernel_cache_dir
+
+# Before numba is imported (by objective.py and raster.py): where nothing numba would use
+# can be written, point it at a private temporary folder, or it refuses cache=True kernels.
+kernel_cache_dir()
 
 #: Segments per round cap of a stroke polygon (render.CAP_SEGMENTS).
 CAP_SEGMENTS = 8
 
 
-def kernels_cached(folder: Path = Path(__file__).parent) -> bool | None:
-    """Whether numba's cache beside the kernels in ``folder`` holds the fit's step loop.
+def kernels_cached(folder: Path = Path(__file__).parent) -> bool:
+    """Whether numba's cache of the kernels in ``folder`` holds the fit's step loop,
+    wherever numba keeps it (:func:`kernel_cache_dir`: beside the kernels, or
+    ``NUMBA_CACHE_DIR``, or the per-user cache of a read-only install).
 
     False on a fresh install, whose first fit compiles the kernels (about half a minute,
-    once); None where numba keeps its cache elsewhere (``NUMBA_CACHE_DIR``, a read-only
-    install), which is not looked into. Reads file names only, so it costs no import
-    of numba. An index left by an older version counts as present.
+    once). Reads file names only, so it costs no import of numba. An index left by an
+    older version counts as present.
     """
-    if os.environ.get("NUMBA_CACHE_DIR") or not os.access(folder, os.W_OK):
-        return None
-    return any((folder / "__pycache__").glob("objective.descend-*.nbi"))
+    return any(kernel_cache_dir(folder).glob("objective.descend-*.nbi"))
 
 
 @functools.lru_cache(maxsize=8)

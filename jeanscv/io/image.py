@@ -24,6 +24,7 @@ import numpy as np
 from PIL import Image, ImageFile, UnidentifiedImageError
 
 from jeanscv.errors import JeansError
+from jeanscv.io.files import open_regular
 
 RAW_EXTENSIONS: frozenset[str] = frozenset(
     {
@@ -77,12 +78,14 @@ MIN_SIDE = 8
 _PILLOW_FORMATS = ("JPEG", "PNG", "WEBP", "TIFF", "BMP", "DIB", "GIF")
 _FORMAT_NAMES = {"MPO": "JPEG", "DIB": "BMP"}
 
-# Pillow's decompression-bomb limit and truncated-image switch are module globals;
-# they are set per call under this lock, so concurrent loads cannot see each other's.
+# Pillow's decompression-bomb limit and truncated-image switch, and the warning
+# filters, are process globals; they are set per call under this lock, so concurrent
+# loads cannot see each other's.
 _PILLOW_LOCK = threading.Lock()
 
-# Errors Pillow's decoders raise for damaged data.
-_DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error, IndexError)
+# Errors Pillow's decoders raise for damaged data (TypeError: a TIFF whose StripOffsets
+# are rationals or floats, found by bench/fuzz.py).
+_DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error, IndexError, TypeError)
 
 # LibRaw's ``flip`` code -> EXIF orientation (LibRaw maps EXIF 1..8 to "50132467").
 _LIBRAW_FLIP_TO_EXIF = {0: 1, 1: 2, 2: 4, 3: 3, 4: 5, 5: 8, 6: 6, 7: 7}
@@ -132,25 +135,35 @@ def load_image(path: str | Path, max_pixels: int = 100_000_000, raw_half_size: b
     if max_pixels < 1:
         raise JeansError("--max-pixels must be at least 1")
     path = Path(path)
-    if not path.exists():
-        raise JeansError("file not found")
-    if path.is_dir():
-        raise JeansError("is a folder, not an image file")
     file = _open_nonempty(path)
     if path.suffix.lower() in RAW_EXTENSIONS:
         file.close()  # LibRaw opens the file itself
         return _load_raw(path, max_pixels, half_size=raw_half_size)
-    with file:
+    # Damaged files make Pillow warn ("Corrupt EXIF data") and libtiff, libpng and
+    # OpenCV print to file descriptor 2; the reason reaches the user once, as a
+    # JeansError, so none of that gets through. The lock keeps the warning filters
+    # (process-wide) from being swapped under another thread's load.
+    with file, _PILLOW_LOCK, warnings.catch_warnings(), _c_stderr_silenced():
+        warnings.simplefilter("ignore")
         return _load_pillow(file, max_pixels)
 
 
 def _open_nonempty(path: Path) -> BinaryIO:
-    """Open ``path`` for reading, raising for unreadable or zero-byte files."""
+    """Open ``path`` for reading, raising for missing, unreadable, zero-byte and
+    non-regular files (a FIFO would block the read forever, a device never end)."""
     try:
-        file = path.open("rb")
+        file = open_regular(path)
+    except FileNotFoundError:
+        raise JeansError("file not found") from None
+    except IsADirectoryError:
+        raise JeansError("is a folder, not an image file") from None
+    except OSError as exc:
+        raise JeansError(f"cannot read file: {_os_reason(exc)}") from exc
+    try:
         empty = not file.read(1)
         file.seek(0)
     except OSError as exc:
+        file.close()
         raise JeansError(f"cannot read file: {_os_reason(exc)}") from exc
     if empty:
         file.close()
@@ -180,36 +193,37 @@ def _megapixels(pixels: int) -> str:
 
 
 def _load_pillow(file: BinaryIO, max_pixels: int) -> LoadedImage:
-    """Decode an open photo file with Pillow (which reads it lazily: header first)."""
-    with _PILLOW_LOCK, warnings.catch_warnings():
-        # Pillow warns between its limit and twice its limit; the size is checked here.
-        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-        saved = Image.MAX_IMAGE_PIXELS, ImageFile.LOAD_TRUNCATED_IMAGES
-        ImageFile.LOAD_TRUNCATED_IMAGES = False
+    """Decode an open photo file with Pillow (which reads it lazily: header first).
+
+    Called under ``_PILLOW_LOCK``: Pillow's decompression-bomb limit and
+    truncated-image switch are module globals, set here per call.
+    """
+    saved = Image.MAX_IMAGE_PIXELS, ImageFile.LOAD_TRUNCATED_IMAGES
+    ImageFile.LOAD_TRUNCATED_IMAGES = False
+    try:
+        # Opening reads only the header; with Pillow's own check off, the size
+        # check below can name the dimensions.
+        Image.MAX_IMAGE_PIXELS = None
         try:
-            # Opening reads only the header; with Pillow's own check off, the size
-            # check below can name the dimensions.
-            Image.MAX_IMAGE_PIXELS = None
-            try:
-                img = Image.open(file, formats=_PILLOW_FORMATS)
-            except UnidentifiedImageError as exc:
-                raise JeansError("not an image file (or an unsupported image format)") from exc
-            except _DECODE_ERRORS as exc:
-                raise JeansError("truncated or corrupt image") from exc
-            _check_dimensions(img.width, img.height, max_pixels)
-            # Pillow raises DecompressionBombError above twice its limit, so this
-            # also guards frames and tiles decoded later (TIFF checks at load).
-            Image.MAX_IMAGE_PIXELS = (max_pixels + 1) // 2
-            rawmode = _tile_rawmode(img)
-            orientation = _exif_orientation(img)  # as stored in the file
-            try:
-                img.load()
-            except Image.DecompressionBombError as exc:
-                raise JeansError(f"image frame is over the --max-pixels limit of {_megapixels(max_pixels)} MP") from exc
-            except _DECODE_ERRORS as exc:
-                raise JeansError("truncated or corrupt image") from exc
-        finally:
-            Image.MAX_IMAGE_PIXELS, ImageFile.LOAD_TRUNCATED_IMAGES = saved
+            img = Image.open(file, formats=_PILLOW_FORMATS)
+        except UnidentifiedImageError as exc:
+            raise JeansError("not an image file (or an unsupported image format)") from exc
+        except _DECODE_ERRORS as exc:
+            raise JeansError("truncated or corrupt image") from exc
+        _check_dimensions(img.width, img.height, max_pixels)
+        # Pillow raises DecompressionBombError above twice its limit, so this
+        # also guards frames and tiles decoded later (TIFF checks at load).
+        Image.MAX_IMAGE_PIXELS = (max_pixels + 1) // 2
+        rawmode = _tile_rawmode(img)
+        orientation = _exif_orientation(img)  # as stored in the file
+        try:
+            img.load()
+        except Image.DecompressionBombError as exc:
+            raise JeansError(f"image frame is over the --max-pixels limit of {_megapixels(max_pixels)} MP") from exc
+        except _DECODE_ERRORS as exc:
+            raise JeansError("truncated or corrupt image") from exc
+    finally:
+        Image.MAX_IMAGE_PIXELS, ImageFile.LOAD_TRUNCATED_IMAGES = saved
 
     # Pillow orients some formats itself while loading (TIFF) and then drops the
     # tag, so only the orientation it still reports is left to apply.
@@ -241,7 +255,7 @@ def _exif_orientation(img: Image.Image) -> int:
     """EXIF orientation 1..8 (from EXIF, TIFF tags or XMP); 1 when absent or invalid."""
     try:
         orientation = int(img.getexif().get(0x0112, 1))
-    except (*_DECODE_ERRORS, TypeError):
+    except _DECODE_ERRORS:
         return 1  # unreadable metadata: show the pixels as stored
     return orientation if 1 <= orientation <= 8 else 1
 
@@ -286,7 +300,10 @@ def _decode_16bit(file: BinaryIO) -> np.ndarray | None:
     import cv2  # only needed for this rare case; cv2's import is not free
 
     file.seek(0)
-    deep = cv2.imdecode(np.frombuffer(file.read(), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    data = file.read()
+    if data.startswith(_PNG_SIGNATURE) and not _png_chunks_inside(data):
+        return None
+    deep = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     if deep is None or deep.dtype != np.uint16 or deep.ndim != 3:
         return None
     if deep.shape[2] == 3:
@@ -296,6 +313,23 @@ def _decode_16bit(file: BinaryIO) -> np.ndarray | None:
     else:
         return None
     return np.ascontiguousarray(_scale_16_to_8(deep))
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_chunks_inside(data: bytes) -> bool:
+    """Whether every chunk of a PNG ends inside the file.
+
+    OpenCV's PNG reader allocates what a chunk's length field claims: a 640-byte
+    16-bit PNG whose IDAT claimed 1 GiB took 1 GiB of memory and 3 to 14 seconds.
+    Pillow decodes such a file from the bytes actually there.
+    """
+    pos = len(_PNG_SIGNATURE)
+    while pos + 8 <= len(data):
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        pos += 12 + length  # length, type, data, CRC
+    return pos <= len(data)
 
 
 def _max_difference(a: np.ndarray, b: np.ndarray) -> int:
@@ -349,23 +383,40 @@ def _exif_without_orientation(exif: bytes | None) -> bytes | None:
         return None  # damaged EXIF is not worth copying into an output
 
 
+_SILENCE_LOCK = threading.Lock()
+_silenced = {"depth": 0, "saved": -1}
+
+
 @contextlib.contextmanager
-def _libraw_stderr_silenced():
-    """LibRaw prints its own complaints ("Unexpected end of file") to stderr from C; the
-    reason reaches the user once, as our JeansError, so its line is dropped."""
+def _c_stderr_silenced():
+    """C decoders print their own complaints to file descriptor 2 (LibRaw's "Unexpected
+    end of file", libtiff's, libpng's, OpenCV's warnings); the reason reaches the user
+    once, as our JeansError, so their lines are dropped.
+
+    Nested and concurrent uses share one redirection (counted under a lock), so a thread
+    leaving cannot restore descriptor 2 to another's devnull.
+    """
+    with _SILENCE_LOCK:
+        if _silenced["depth"] == 0:
+            try:
+                sys.stderr.flush()
+                saved = os.dup(2)
+            except (OSError, ValueError):  # no usable file descriptor 2: nothing to silence
+                saved = -1
+            if saved >= 0:
+                with open(os.devnull, "wb") as devnull:
+                    os.dup2(devnull.fileno(), 2)
+            _silenced["saved"] = saved
+        _silenced["depth"] += 1
     try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):  # no usable file descriptor 2: nothing to silence
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as devnull:
-            os.dup2(devnull.fileno(), 2)
         yield
     finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+        with _SILENCE_LOCK:
+            _silenced["depth"] -= 1
+            if _silenced["depth"] == 0 and _silenced["saved"] >= 0:
+                os.dup2(_silenced["saved"], 2)
+                os.close(_silenced["saved"])
+                _silenced["saved"] = -1
 
 
 def _load_raw(path: Path, max_pixels: int, half_size: bool) -> LoadedImage:
@@ -375,7 +426,7 @@ def _load_raw(path: Path, max_pixels: int, half_size: bool) -> LoadedImage:
     raw = rawpy.RawPy()
     try:
         try:
-            with _libraw_stderr_silenced():
+            with _c_stderr_silenced():
                 raw.open_file(str(path))
         except rawpy.LibRawError as exc:
             raise JeansError("not a readable RAW file: unsupported camera or not a RAW file") from exc
@@ -387,7 +438,7 @@ def _load_raw(path: Path, max_pixels: int, half_size: bool) -> LoadedImage:
         width, height = (sizes.height, sizes.width) if flip & 4 else (sizes.width, sizes.height)
         _check_dimensions(width, height, max_pixels)
         try:
-            with _libraw_stderr_silenced():
+            with _c_stderr_silenced():
                 raw.unpack()
                 rgb = raw.postprocess(
                     use_camera_wb=True,
@@ -400,7 +451,14 @@ def _load_raw(path: Path, max_pixels: int, half_size: bool) -> LoadedImage:
             raise JeansError("not a readable RAW file: raw data truncated or corrupt") from exc
     finally:
         raw.close()
-    pixels = np.ascontiguousarray(rgb, dtype=np.uint8)
+    pixels = np.asarray(rgb, dtype=np.uint8)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    if pixels.ndim != 3 or pixels.shape[2] not in (1, 3):
+        raise JeansError("not a readable RAW file: unsupported colour layout")
+    if pixels.shape[2] == 1:  # a damaged DNG can demosaic to one channel (found by bench/fuzz.py)
+        pixels = np.repeat(pixels, 3, axis=2)
+    pixels = np.ascontiguousarray(pixels)
     return LoadedImage(
         pixels=pixels,
         alpha_meaningful=False,

@@ -39,6 +39,7 @@ import numpy as np
 
 from jeanscv.errors import JeansError
 from jeanscv.geometry import invert_affine
+from jeanscv.io.files import open_regular
 
 from .svg_path import (
     _NUMBER,
@@ -89,7 +90,7 @@ class SvgSilhouette:
 def read_svg_silhouette(path: str | Path, canvas_size: int = 256, supersample: int = 4) -> SvgSilhouette:
     """Read the SVG (or gzipped ``.svgz``) at ``path`` and rasterise its filled shapes."""
     try:
-        with open(path, "rb") as handle:
+        with open_regular(path) as handle:
             data = handle.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise JeansError(f"not an SVG file: cannot read it ({exc.strerror or exc})") from None
@@ -114,10 +115,14 @@ def read_svg_silhouette_from_bytes(data: bytes, canvas_size: int = 256, supersam
     )
 
     shapes: list[_Shape] = []
-    _Walker(root, shapes, (width, height)).walk(root, user_to_canvas, _DEFAULT_STYLE, 0)
-    if not shapes:
-        raise JeansError("SVG has no filled path")
-    alpha = _rasterize_shapes(shapes, canvas_size, supersample)
+    # Finite transforms can compose to inf or nan (matrix(1e300 ...) twice); the
+    # coordinate check in _rasterize_shapes refuses those, so numpy's warning would be a
+    # second line for one bad file.
+    with np.errstate(all="ignore"):
+        _Walker(root, shapes, (width, height)).walk(root, user_to_canvas, _DEFAULT_STYLE, 0)
+        if not shapes:
+            raise JeansError("SVG has no filled path")
+        alpha = _rasterize_shapes(shapes, canvas_size, supersample)
     if not np.any(alpha):
         raise JeansError(
             "silhouette is empty: the path encloses no area inside the viewBox (or is thinner than a sample)"
@@ -215,8 +220,8 @@ def _parse_xml(data: bytes) -> _Node:
         parser.Parse(data, True)
     except expat.ExpatError as exc:
         raise JeansError(f"not an SVG file: XML {exc}") from None
-    except (ValueError, UnicodeError) as exc:
-        raise JeansError(f"not an SVG file: {exc}") from None
+    except (ValueError, UnicodeError, LookupError) as exc:  # LookupError: an unknown declared encoding
+        raise JeansError(f"not an SVG file: {' '.join(str(exc).split())}") from None
     if not roots or roots[0].tag != "svg":
         raise JeansError("not an SVG file: the root element is not <svg>")
     return roots[0]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import secrets
 import stat
 from pathlib import Path
@@ -17,6 +18,11 @@ import numpy as np
 from PIL import Image
 
 from jeanscv.errors import JeansError
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks; stale temporary files are not swept
+    fcntl = None
 
 _FORMAT_BY_EXTENSION = {
     ".png": "PNG",
@@ -34,27 +40,25 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
 
     The temporary file lives in the destination folder (so the final rename stays
     on one file system) and is removed on any failure, KeyboardInterrupt included.
-    A replaced file keeps its permission bits. Raises ``JeansError`` when the
-    destination cannot be written.
+    Its data reaches the disk before the rename, and the rename before this returns,
+    so after a power loss the target is the old file or the complete new one. While it
+    is written the temporary file is locked, which tells :func:`remove_stale_temporaries`
+    that its writer is alive. A replaced file keeps its permission bits. Raises
+    ``JeansError`` when the destination cannot be written.
     """
     path = Path(path)
     folder = path.parent
-    tmp = folder / f".{path.name}.{secrets.token_hex(4)}.tmp"
-    try:
-        # O_EXCL: never clobber someone else's file; mode 0o666 lets the umask decide.
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-    except OSError as exc:
-        raise JeansError(f"cannot write output: {_reason(exc)}") from exc
+    tmp, fd = _create_temporary(path)
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        try:
-            os.chmod(tmp, stat.S_IMODE(os.stat(path).st_mode))
-        except FileNotFoundError:
-            pass  # a new file: the umask already chose its mode
-        os.replace(tmp, path)
+            try:
+                os.chmod(tmp, stat.S_IMODE(os.stat(path).st_mode))
+            except FileNotFoundError:
+                pass  # a new file: the umask already chose its mode
+            os.replace(tmp, path)  # still locked: a sweeper never takes a file being renamed
     except BaseException as exc:
         try:
             os.unlink(tmp)
@@ -64,6 +68,85 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
             raise JeansError(f"cannot write output: {_reason(exc)}") from exc
         raise
     _fsync_folder(folder)
+
+
+def _temporary_name(path: Path) -> Path:
+    return path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+
+
+def _create_temporary(path: Path) -> tuple[Path, int]:
+    """Create and lock a new temporary file beside ``path``: ``(its path, descriptor)``."""
+    for _ in range(8):
+        tmp = _temporary_name(path)
+        try:
+            # O_EXCL: never clobber someone else's file; mode 0o666 lets the umask decide.
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+        except OSError as exc:
+            raise JeansError(f"cannot write output: {_reason(exc)}") from exc
+        if _lock(fd, wait=True) and not _still_named(tmp, fd):
+            # A sweeper took it for a dead writer's between its creation and the lock.
+            os.close(fd)
+            continue
+        return tmp, fd
+    raise JeansError("cannot write output: its temporary file keeps being removed")
+
+
+def _lock(fd: int, wait: bool) -> bool:
+    """An exclusive advisory lock on ``fd``; False where locks are not available (or,
+    without ``wait``, when another process holds it)."""
+    if fcntl is None:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+    except OSError:  # held by a live writer, or a file system without locks
+        return False
+    return True
+
+
+def _still_named(tmp: Path, fd: int) -> bool:
+    try:
+        return os.stat(tmp).st_ino == os.fstat(fd).st_ino
+    except OSError:
+        return False
+
+
+#: A temporary file of :func:`atomic_write_bytes`: ``.NAME.8HEX.tmp``.
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[0-9a-f]{8}\.tmp")
+
+
+def remove_stale_temporaries(folder: str | Path, names: set[str] | None = None) -> list[Path]:
+    """Remove the temporary files that writers killed mid-write left in ``folder``.
+
+    A killed process (SIGKILL, power loss) cannot remove its temporary file. Only
+    those of targets in ``names`` (all when None) are looked at, and only unlocked
+    ones are removed: a live writer, in this process or another, holds its lock until
+    its rename. Returns the removed paths; where file locks are not available
+    nothing is removed.
+    """
+    if fcntl is None:
+        return []
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return []
+    for entry in entries:
+        match = _TEMPORARY.fullmatch(entry.name)
+        if match is None or (names is not None and match.group("name") not in names):
+            continue
+        try:
+            fd = os.open(entry.path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        except OSError:
+            continue  # renamed or removed meanwhile
+        try:
+            if stat.S_ISREG(os.fstat(fd).st_mode) and _lock(fd, wait=False) and _still_named(Path(entry.path), fd):
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+    return removed
 
 
 def _fsync_folder(folder: Path) -> None:

@@ -1,0 +1,176 @@
+"""Runs killed with SIGKILL (the parent, or one ``-j`` worker; a file that kills its worker
+every time) and two runs at once on one folder, as real processes. Whenever the kill lands, the invariants hold: every output is
+complete, no temporary file is left once the processes are gone, no process outlives its
+run, and running again completes what is missing. (The speed of two runs at once is
+measured by ``bench/two_runs.py``, not here.)
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import write_silhouette_png
+from test_faults import assert_valid_outputs, temporaries
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc; POSIX signals")
+
+# Torch backend: no kernel compilation in a fresh process; enough iterations that a kill
+# usually lands mid-batch (the assertions hold wherever it lands).
+SLOW = ("--iterations", "12", "--starts", "1", "--backend", "torch", "-q")
+COUNT = 5
+
+
+def make_folder(tmp_path: Path) -> tuple[Path, Path, list[str]]:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for i in range(COUNT):
+        write_silhouette_png(folder / f"s{i}.png")
+    return folder, tmp_path / "out", [f"s{i}.jeans.png" for i in range(COUNT)]
+
+
+def jeanscv(*args) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "jeanscv", *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        text=True,
+    )
+
+
+def wait_until(condition, timeout: float = 300.0) -> bool:
+    """Poll ``condition`` until it holds; False after ``timeout`` (a generous bound, not a timing)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def children(pid: int) -> list[int]:
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Running (a zombie waiting for a reaper counts as gone)."""
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def any_output(out: Path) -> bool:
+    return out.is_dir() and any(".jeans." in p.name and not p.name.endswith(".tmp") for p in out.iterdir())
+
+
+def finished_outputs(out: Path) -> list[str]:
+    return sorted(p.name for p in out.iterdir() if ".jeans." in p.name and not p.name.startswith("."))
+
+
+def resume(folder: Path, out: Path, names: list[str], before: dict[str, bytes]) -> None:
+    """Run again: exit 0, every output there and complete, the earlier ones untouched."""
+    done = subprocess.run(
+        [sys.executable, "-m", "jeanscv", folder, "-o", out, *SLOW, "-j", "1"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    again = assert_valid_outputs(out, names)
+    assert {name: again[name] for name in before} == before
+
+
+def test_sigkill_to_the_parent(tmp_path):
+    folder, out, names = make_folder(tmp_path)
+    run = jeanscv(folder, "-o", out, "-j", "2", *SLOW)
+    assert wait_until(lambda: any_output(out) or run.poll() is not None)
+    workers = children(run.pid)
+    run.kill()
+    run.wait()
+    # The workers notice within a second or so, and stop; a file in progress leaves nothing.
+    assert wait_until(lambda: not any(alive(pid) for pid in workers), timeout=120), "orphaned workers"
+    before = assert_valid_outputs(out, finished_outputs(out))
+    resume(folder, out, names, before)
+
+
+def test_sigkill_to_a_worker(tmp_path):
+    """A worker killed mid-batch (the OOM killer, say) breaks the pool; the files it left
+    unfinished run again in a fresh pool, so nothing fails and nothing is left behind."""
+    folder, out, names = make_folder(tmp_path)
+    run = jeanscv(folder, "-o", out, "-j", "2", *SLOW)
+    assert wait_until(lambda: any_output(out) or run.poll() is not None)
+    workers = [pid for pid in children(run.pid) if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_text()]
+    if workers:
+        os.kill(workers[0], signal.SIGKILL)
+    _, stderr = run.communicate(timeout=600)
+    assert run.returncode == 0, stderr
+    assert stderr == ""
+    assert wait_until(lambda: not any(alive(pid) for pid in workers), timeout=120)
+    assert_valid_outputs(out, names)
+
+
+def test_a_file_that_kills_its_worker_fails_alone(tmp_path):
+    """A file whose decoding kills the worker every time (a crash in a C library, made
+    here by a sitecustomize that SIGKILLs the worker loading crash.png): it fails with one
+    line, and the files queued beside it are done."""
+    folder, out, names = make_folder(tmp_path)
+    write_silhouette_png(folder / "crash.png")
+    hooks = tmp_path / "hooks"
+    hooks.mkdir()
+    (hooks / "sitecustomize.py").write_text(
+        "import os, signal\n"
+        "from pathlib import Path\n"
+        "import jeanscv.io.image as image\n"
+        "real = image.load_image\n"
+        "def load_image(path, *args, **kwargs):\n"
+        "    if Path(path).name == 'crash.png':\n"
+        "        os.kill(os.getpid(), signal.SIGKILL)\n"
+        "    return real(path, *args, **kwargs)\n"
+        "image.load_image = load_image\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(hooks), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run(
+        [sys.executable, "-m", "jeanscv", folder, "-o", out, "-j", "2", *SLOW],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=900,
+    )
+    assert done.returncode == 1
+    assert done.stderr.splitlines() == [f"jeanscv: {folder / 'crash.png'}: worker process died (BrokenProcessPool)"]
+    assert_valid_outputs(out, names)
+
+
+def test_two_runs_at_once_share_the_work(tmp_path):
+    """Same folder, same output folder: each input is made by exactly one of the two."""
+    folder, out, names = make_folder(tmp_path)
+    first = jeanscv(folder, "-o", out, "-j", "1", *SLOW[:-1])
+    second = jeanscv(folder, "-o", out, "-j", "1", *SLOW[:-1])
+    results = [run.communicate(timeout=600) for run in (first, second)]
+    assert (first.returncode, second.returncode) == (0, 0), results
+    assert_valid_outputs(out, names)
+    made = 0
+    for _, stderr in results:
+        assert "Traceback" not in stderr
+        summary = re.search(r"^(\d+) ok, 0 failed, (\d+) skipped in ", stderr, re.MULTILINE)
+        assert summary, stderr
+        made += int(summary.group(1))
+    assert made == COUNT  # no input made twice
+    assert temporaries(tmp_path) == []
