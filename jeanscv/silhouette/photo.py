@@ -1,6 +1,12 @@
 """Classical-CV segmentation of a photo into the silhouette of its main object.
 
-Public API: :func:`segment` (photo -> :class:`Segmentation`) and :func:`clean_mask`.
+Public API: :func:`segment` (photo -> :class:`Segmentation`), :func:`hypotheses` (auto's
+hypotheses of a scene, which a click session reuses) and :func:`clean_mask`.
+
+One topic in about 630 lines: the methods (threshold, GrabCut and its refinement), auto's
+hypotheses and choice, which call the methods, and :func:`segment`, which calls both; the
+scene and its measures (:mod:`.scene`), the consensus (:mod:`.consensus`) and the masks'
+helpers (:mod:`.masks`) already live apart.
 
 Arrays: images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8``; masks are
 ``(H, W) bool`` with True on the object. Contours are ``(N, 2) float64`` ``(x, y)`` in
@@ -629,4 +635,4 @@ def _segment_photo(
     return mask, method
 
 
-__all__ = ["Segmentation", "clean_mask", "segment"]
+__all__ = ["Hypotheses", "Segmentation", "clean_mask", "hypotheses", "segment"]
