@@ -161,9 +161,10 @@ class ClickSession:
         return mask
 
     def _first(self, point: tuple[int, int]) -> np.ndarray:
-        """The mask after one positive click: of auto's hypotheses that hold the click
-        (the piece under it: a person clicks each thing that should wear the jeans) and
-        a GrabCut seeded at the click, the one the others agree with most."""
+        """The mask after one positive click: of auto's hypotheses that hold the click,
+        a GrabCut seeded at the click and the geodesic region nearer the click than the
+        border, the one the others agree with most and the click lies deepest in; of it,
+        the piece under the click (a person clicks each thing that should wear the jeans)."""
         x, y = point
         candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
         candidates["click"] = self._click_grabcut(point)
@@ -316,31 +317,28 @@ class _ClickGraph:
     distance of neighbours (less a noise floor), for geodesic distances."""
 
     def __init__(self, rgb: np.ndarray):
-        from scipy.sparse import coo_matrix
-
         from .saliency import SuperpixelGraph
 
         lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
         region = max(4, round(_REGION_FRACTION * max(rgb.shape[:2])))
         graph = SuperpixelGraph.of(lab, region)
         self.labels, self.count, self.area = graph.labels, graph.count, graph.area
-        self.region = region
         self.centre_px = graph.centre * float(max(rgb.shape[:2]))
         self.on_border = graph.border.any(axis=1)
         i, j = graph.edges[:, 0], graph.edges[:, 1]
         weight = np.maximum(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) - _STEP_FLOOR, 0.0) + 1e-3
         self._i, self._j, self._w = i, j, weight
-        self._coo = coo_matrix
 
     def mean_of(self, mask: np.ndarray) -> np.ndarray:
         return np.bincount(self.labels.ravel(), mask.ravel().astype(np.float64), self.count) / self.area
 
     def distances(self, allowed: np.ndarray, sources) -> np.ndarray:
         """(n,) geodesic distance to the nearest of ``sources`` through ``allowed`` nodes."""
+        from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import dijkstra
 
         keep = allowed[self._i] & allowed[self._j]
-        matrix = self._coo((self._w[keep], (self._i[keep], self._j[keep])), shape=(self.count, self.count)).tocsr()
+        matrix = coo_matrix((self._w[keep], (self._i[keep], self._j[keep])), shape=(self.count, self.count)).tocsr()
         return dijkstra(matrix, directed=False, indices=np.asarray(sources, int), min_only=True)
 
 
