@@ -28,6 +28,7 @@ import numpy as np
 from PIL import Image
 
 from jeanscv.io.image import load_image
+from jeanscv.silhouette.consensus import iou
 from jeanscv.silhouette.interactive import ClickSession, simulated_click
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,11 +46,6 @@ def photo_pairs(folders: list[Path]) -> list[tuple[str, Path, Path]]:
             if photos:
                 pairs.append((stem, photos[0], mask_path))
     return pairs
-
-
-def iou(a: np.ndarray, b: np.ndarray) -> float:
-    union = np.count_nonzero(a | b)
-    return np.count_nonzero(a & b) / union if union else 1.0
 
 
 def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS) -> dict:

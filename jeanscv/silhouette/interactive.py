@@ -28,8 +28,10 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from jeanscv.clicks import ObjectClicks
 from jeanscv.errors import JeansError
 
+from .consensus import iou
 from .masks import MORPH_FRACTION, disk, downscale, fill_holes, outer_contour, resize, shape_for
 from .photo import Segmentation, _run_grabcut, _validate_image
 
@@ -113,10 +115,8 @@ class ClickSession:
         Clicks are applied in order: positive ones first as given, then negative ones;
         the mask holds every positive click and none of the negative ones.
         """
-        if not positive:
-            raise JeansError("an object needs at least one positive click")
-        if {_pixel(p) for p in positive} & {_pixel(p) for p in negative}:
-            raise JeansError("a negative click is on top of a positive one")
+        clicks = ObjectClicks(tuple(positive), tuple(negative))  # one object's clicks, checked as a file's are
+        positive, negative = clicks.positive, clicks.negative
         working = self.working_mask(positive, negative)
         height, width = self.shape
         full = resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR) >= 128
@@ -138,8 +138,8 @@ class ClickSession:
         for previews. A negative click that lands on a positive one's working pixel
         (clicks a few pixels apart on a large photo) is left to :meth:`segment`'s full
         resolution."""
-        if not positive:
-            raise JeansError("an object needs at least one positive click")
+        clicks = ObjectClicks(tuple(positive), tuple(negative))
+        positive, negative = clicks.positive, clicks.negative
         pos = [self._to_working(p) for p in positive]
         neg = [q for q in (self._to_working(p) for p in negative) if q not in pos]
         mask = self._after(tuple(("+", p) for p in pos) + tuple(("-", p) for p in neg))
@@ -175,7 +175,7 @@ class ClickSession:
         # Agreement with the others, and how deep inside the click lies (a person clicks
         # the middle of the thing): a mask the click only grazes is likely the wrong one.
         scores = {
-            a: np.mean([_iou(candidates[a], candidates[b]) for b in names if b != a])
+            a: np.mean([iou(candidates[a], candidates[b]) for b in names if b != a])
             + _DEPTH_WEIGHT * _relative_depth(candidates[a], x, y)
             for a in names
         }
@@ -302,14 +302,9 @@ def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
     return filled
 
 
-def _pixel(point: Point) -> tuple[int, int]:
-    return int(np.floor(point[0])), int(np.floor(point[1]))
-
-
 def _depth(region: np.ndarray, x: int, y: int) -> float:
     """Distance (pixels, at least 2) from (x, y) to the boundary of ``region``."""
-    distance = cv2.distanceTransform(np.pad(region, 1).astype(np.uint8), cv2.DIST_L2, 5)
-    return max(2.0, float(distance[y + 1, x + 1]))
+    return max(2.0, float(_interior_distance(region)[y, x]))
 
 
 class _ClickGraph:
@@ -344,13 +339,8 @@ class _ClickGraph:
 
 def _relative_depth(mask: np.ndarray, x: int, y: int) -> float:
     """The click's distance to the mask's boundary over the mask's deepest distance."""
-    distance = cv2.distanceTransform(np.pad(mask, 1).astype(np.uint8), cv2.DIST_L2, 5)
-    return float(distance[y + 1, x + 1]) / max(float(distance.max()), 1.0)
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> float:
-    union = np.count_nonzero(a | b)
-    return np.count_nonzero(a & b) / union if union else 1.0
+    distance = _interior_distance(mask)
+    return float(distance[y, x]) / max(float(distance.max()), 1.0)
 
 
 def _interior_distance(region: np.ndarray) -> np.ndarray:
