@@ -224,12 +224,16 @@ def create_app(config: Config) -> Guard:
         finally:
             await form.close()
 
-    async def _json_body(request: Request):
+    async def _json_object(request: Request) -> dict:
+        """The request's JSON object body, else JeansError saying why."""
         try:
             body = await request.body()
-            return json.loads(body or b"{}")
+            data = json.loads(body or b"{}")
         except (ValueError, UnicodeDecodeError):
             raise JeansError("the request body is not valid JSON") from None
+        if not isinstance(data, dict):
+            raise JeansError("expected a JSON object")
+        return data
 
     async def rerender(request: Request) -> Response:
         photo_id = request.path_params["photo"]
@@ -237,9 +241,7 @@ def create_app(config: Config) -> Guard:
         if photo is None:
             return _error(404, "no such photo (it may have expired: drop it again)")
         try:
-            data = await _json_body(request)
-            if not isinstance(data, dict):
-                raise JeansError("expected a JSON object")
+            data = await _json_object(request)
             render_options = engine.RenderOptions.from_json(data.get("options"))
             clicks = engine.clicks_from_json(data.get("objects"), photo.size)
         except JeansError as exc:
@@ -386,9 +388,7 @@ def create_app(config: Config) -> Guard:
         if job is None:
             return _error(404, "no such photo in the folder")
         try:
-            data = await _json_body(request)
-            if not isinstance(data, dict):
-                raise JeansError("expected a JSON object")
+            data = await _json_object(request)
         except JeansError as exc:
             return _error(422, str(exc))
         photo = state.photos.get(str(data.get("photo", "")))

@@ -406,9 +406,10 @@ def folder_jobs(folder: Path) -> list[Job]:
 
 
 def saved_clicks(job: Job) -> Clicks | None:
-    """The photo's clicks sidecar, when it has a usable one."""
-    path = sidecar_path(job.path)
-    if not path.is_file():
+    """The photo's clicks sidecar, when it has a usable one (the command line's rule for
+    which file that is: :func:`jeanscv_cli.worker.saved_clicks`)."""
+    path = worker.saved_clicks(job, JeansOptions())
+    if path is None:
         return None
     try:
         return read_clicks(path)
