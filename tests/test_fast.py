@@ -187,6 +187,34 @@ def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, 
     np.testing.assert_array_equal(fused.vertices, stepped.vertices)
 
 
+def test_the_kernels_adam_step_gives_the_same_bits_as_adam_update():
+    from jeanscv._fast.objective import adam_step
+    from jeanscv.adam import adam_update
+
+    rng = np.random.default_rng(3)
+    params, grad = rng.normal(size=(5, 8, 2)), rng.normal(size=(5, 8, 2)) * 10.0 ** rng.integers(-8, 4, (5, 8, 2))
+    moments = rng.random((5, 8, 2)), rng.random((5, 8, 2)) * 1e-3
+    numpy_side = [params.copy(), moments[0].copy(), moments[1].copy()]
+    kernel_side = [params.copy(), moments[0].copy(), moments[1].copy()]
+    for step_size, bias2 in ((0.01 / 0.1, 1e-3), (0.0123, 0.31), (0.001, 0.999)):
+        adam_update(numpy_side[0], grad, numpy_side[1], numpy_side[2], 0.9, 0.999, step_size, bias2, 1e-8)
+        adam_step(kernel_side[0], grad, kernel_side[1], kernel_side[2], 0.9, 0.999, step_size, bias2, 1e-8)
+        for a, b in zip(numpy_side, kernel_side, strict=True):
+            assert a.tobytes() == b.tobytes()
+
+
+def test_a_fit_compiles_one_specialisation_of_each_big_kernel():
+    """A literal argument (``True``, a constant width) makes numba compile a kernel once
+    more; the objective alone is a quarter of the first run's compiling."""
+    from jeanscv._fast import objective as kernels
+    from jeanscv._fast import raster
+
+    fit(silhouette_zoo(["blob_a"])["blob_a"], iterations=3)
+    _fast.Objective(JEANS, "all", {"coverage": 1.0})(JEANS.template[None], np.ones((64, 64)))
+    for kernel in (kernels.objective, kernels._fill_terms, kernels._upright, raster.stroke_band, raster.gather_edge):
+        assert len(kernel.signatures) <= 1, (kernel.__name__, kernel.signatures)
+
+
 def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_starts():
     import functools
 

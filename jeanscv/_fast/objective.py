@@ -29,7 +29,6 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..adam import adam_update
 from ..terms import UPRIGHT_FREE_DEGREES, UPRIGHT_SATURATE_DEGREES
 from .raster import (
     BAND_COLUMNS,
@@ -210,7 +209,8 @@ def _fill_terms(
     rows, cols = max(rows, 0), max(cols, 0)
     area = not_on_body = uncovered_in = s_window = 0.0
     if rows and cols:
-        col0[:rows] = ox
+        for r in range(rows):
+            col0[r] = ox
         cells = (touched, listed, counts)
         for i in range(n):
             j = (i + 1) % n
@@ -309,7 +309,7 @@ def _fill_terms(
     g4 = np.zeros(4)
     for i in range(n):
         j = (i + 1) % n
-        g4[:] = 0.0
+        g4[0] = g4[1] = g4[2] = g4[3] = 0.0
         gather_edge(
             v[i, 0],
             v[i, 1],
@@ -397,7 +397,7 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     saturated = free - math.cos(math.radians(UPRIGHT_SATURATE_DEGREES))
 
     finite = np.ones(batch, np.bool_)
-    rows_limit = 1
+    rows_limit = np.int64(1)  # not a literal 1: numba would compile stroke_band for it
     for b in range(batch):
         for i in range(n):
             if not (math.isfinite(vertices[b, i, 0]) and math.isfinite(vertices[b, i, 1])):
@@ -430,7 +430,8 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     x_major = np.empty(n, np.bool_)
     present = np.empty(n, np.int64)  # the strokes at one pixel
     labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
-    labels[0], labels[1] = is_open, is_closed
+    for e in range(n):
+        labels[0, e], labels[1, e] = is_open[e], is_closed[e]
     outline = np.empty((OUTLINE_POINTS, 2))
     g_outline = np.empty((OUTLINE_POINTS, 2))
     areas = np.empty(n)
@@ -441,9 +442,11 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     for b in range(batch):
         v = vertices[b]
         g_v = grad[b]
-        g_v[:, :] = 0.0
+        for i in range(n):
+            g_v[i, 0] = g_v[i, 1] = 0.0
         if not finite[b]:
-            terms[b, :] = np.nan
+            for k in range(terms.shape[1]):
+                terms[b, k] = np.nan
             continue
 
         # center and rigid, on normalised coordinates
@@ -549,8 +552,9 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
 
         # unions of the open and the closed edges: excess where their strokes stack past 1
         union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
-        overlap[:, :] = 0.0
-        pair_excess[:, :] = 0.0
+        for e in range(n):
+            for k in range(n):
+                overlap[e, k] = pair_excess[e, k] = 0.0
         # (visited in band order of each pixel's lowest stroke, row by row: the same order
         # of sums whichever rows hold overlaps)
         overlaps = 0
@@ -652,7 +656,8 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
                     lone += union_weight[u] * union_d_den[u]
                     lone_s += union_weight[u] / union_den[u]
             for r in range(band_count[e]):
-                band_diff[e, r, :] = 0.0
+                for c in range(BAND_COLUMNS + 2):
+                    band_diff[e, r, c] = 0.0
                 for c in range(band_lo[e, r], band_hi[e, r]):
                     w = band_wind[e, r, c]
                     if w == 0.0:
@@ -750,7 +755,24 @@ def _clear_mask(mask, size, n, row_start, col_start, band_count, band_lo, band_h
 # In this file, not its own: numba's cache of a function is refreshed when its own file
 # changes, and the step loop's compiled code holds the objective's.
 
-_adam_update = njit(cache=True)(adam_update)
+
+@njit(cache=True)
+def adam_step(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_size, bias2, eps):
+    """:func:`jeanscv.adam.adam_update` element by element, for ``(B, N, 2)`` arrays: the
+    same operations in the same order, so the same bits (tests/test_fast.py), without
+    numba's array expressions, which take seconds to compile."""
+    keep1, keep2 = 1 - beta1, 1 - beta2
+    for b in range(params.shape[0]):
+        for i in range(params.shape[1]):
+            for j in range(params.shape[2]):
+                g = grad[b, i, j]
+                m = exp_avg[b, i, j] * beta1
+                m += keep1 * g
+                v = exp_avg_sq[b, i, j] * beta2
+                v += keep2 * g * g
+                exp_avg[b, i, j] = m
+                exp_avg_sq[b, i, j] = v
+                params[b, i, j] -= step_size * (m / (math.sqrt(v / bias2) + eps))
 
 
 @njit(cache=True)
@@ -769,12 +791,18 @@ def descend(params, exp_avg, exp_avg_sq, step_sizes, bias2, beta1, beta2, eps, t
     """
     size = float(target.s.shape[0])
     batch = params.shape[0]
-    pixels = np.empty_like(params)
-    grad = np.empty_like(params)
+    pixels = np.empty(params.shape)
+    grad = np.empty(params.shape)
     terms = np.empty((batch, target.weights.shape[0]))
+    # A run-time True: a literal one would compile a second objective beside the one
+    # that Python calls (numba specialises on literal arguments).
+    need_grad = step_sizes.shape[0] > 0
     for k in range(step_sizes.shape[0]):
-        pixels[:] = params * size
-        objective(pixels, target, True, totals[k], terms, grad, scratch)
+        for b in range(batch):
+            for i in range(params.shape[1]):
+                for j in range(2):
+                    pixels[b, i, j] = params[b, i, j] * size
+        objective(pixels, target, need_grad, totals[k], terms, grad, scratch)
         any_finite = False
         for b in range(batch):
             finite = math.isfinite(totals[k, b])
@@ -785,6 +813,9 @@ def descend(params, exp_avg, exp_avg_sq, step_sizes, bias2, beta1, beta2, eps, t
                     grad[b, i, j] = g if math.isfinite(g) else 0.0
         if not any_finite:
             return k
-        _adam_update(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_sizes[k], bias2[k], eps)
-        path[k] = params
+        adam_step(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_sizes[k], bias2[k], eps)
+        for b in range(batch):
+            for i in range(params.shape[1]):
+                for j in range(2):
+                    path[k, b, i, j] = params[b, i, j]
     return step_sizes.shape[0]

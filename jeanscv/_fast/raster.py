@@ -301,20 +301,24 @@ def clipped_segment(px, py, qx, qy, low, high):
 
 
 @njit(cache=True)
-def band_plan(sx, sy, ex, ey, half_width, rows, col_start):
-    """Band placement along y of a (flipped) segment (render._plan_bands).
-
-    Fills ``col_start[:rows]``; returns ``(row_start, own_rows)``.
-    """
+def band_extent(sy, ey, half_width):
+    """The band of a (flipped) segment along y (render._plan_bands): ``(row_start, own_rows)``."""
     y_low, y_high = min(sy, ey), max(sy, ey)
     row_start = math.floor(y_low - half_width)
-    own = int(math.floor(y_high + half_width) - row_start) + 1
+    return int(row_start), int(math.floor(y_high + half_width) - row_start) + 1
+
+
+@njit(cache=True)
+def band_plan(sx, sy, ex, ey, half_width, rows, col_start):
+    """Band placement along y of a (flipped) segment (render._plan_bands): fills
+    ``col_start[:rows]`` with each band row's first column."""
+    y_low, y_high = min(sy, ey), max(sy, ey)
+    row_start = math.floor(y_low - half_width)
     span_y = ey - sy
     slope = (ex - sx) / span_y if abs(span_y) > 1e-9 else 0.0
     for r in range(rows):
         centre_y = min(max(row_start + r + 0.5, y_low), y_high)
         col_start[r] = int(math.floor(sx + (centre_y - sy) * slope)) - BAND_LEFT
-    return int(row_start), own
 
 
 @njit(cache=True)
@@ -413,12 +417,17 @@ def stroke_band(
     """
     sx, sy, ex, ey, x_major, clip = clipped_segment(px, py, qx, qy, low, high)
     empty = clip[6]
-    row_start, own = band_plan(sx, sy, ex, ey, half_width, 1, col_start)
+    row_start, own = band_extent(sy, ey, half_width)
     rows = min(own + 1, rows_limit)
     band_plan(sx, sy, ex, ey, half_width, rows, col_start)
     if empty:
         return row_start, 0, x_major, True
-    diff[:rows, :] = 0.0
+    # The band's width read from its buffer, not the constant: a literal argument would
+    # compile scatter_edge once more (numba specialises on literals).
+    columns = diff.shape[1] - 2
+    for r in range(rows):
+        for c in range(diff.shape[1]):
+            diff[r, c] = 0.0
     capsule_outline(sx, sy, ex, ey, cos_r, sin_r, outline)
     inf = math.inf
     for k in range(OUTLINE_POINTS):
@@ -435,7 +444,7 @@ def stroke_band(
             row_start,
             col_start,
             rows,
-            BAND_COLUMNS,
+            columns,
             diff,
             ts,
             axes,
@@ -471,13 +480,15 @@ def stroke_band_backward(
     sx, sy, ex, ey, x_major, clip = clipped_segment(px, py, qx, qy, low, high)
     t_in, t_out, ax_in, ax_out, side_in, side_out, _ = clip
     ux, uy, length, tiny = capsule_outline(sx, sy, ex, ey, cos_r, sin_r, outline)
-    row_prefix(cell_grad, rows, BAND_COLUMNS, prefix)
+    columns = cell_grad.shape[1] - 2  # (not the literal constant: see stroke_band)
+    row_prefix(cell_grad, rows, columns, prefix)
     inf = math.inf
     g = np.zeros(4)
-    g_outline[:, :] = 0.0
+    for k in range(OUTLINE_POINTS):
+        g_outline[k, 0] = g_outline[k, 1] = 0.0
     for k in range(OUTLINE_POINTS):
         m = (k + 1) % OUTLINE_POINTS
-        g[:] = 0.0
+        g[0] = g[1] = g[2] = g[3] = 0.0
         gather_edge(
             outline[k, 0],
             outline[k, 1],
@@ -490,7 +501,7 @@ def stroke_band_backward(
             row_start,
             col_start,
             rows,
-            BAND_COLUMNS,
+            columns,
             cell_grad,
             prefix,
             ts,
@@ -516,7 +527,7 @@ def stroke_maps(start, end, height, width, half_width, cos_r, sin_r, out):
     count = start.shape[0]
     margin = half_width + 2.0
     low, high = -margin, max(height, width) + margin
-    rows_limit = 1
+    rows_limit = np.int64(1)  # not a literal 1: numba would compile stroke_band for it
     for m in range(count):
         rows_limit = max(rows_limit, band_rows(start[m, 0], start[m, 1], end[m, 0], end[m, 1], half_width, low, high))
     crossings = 4 * (max(height, width) + 4 * int(margin) + 16)
