@@ -16,7 +16,11 @@ connectivity, Zhu et al. 2014), the one the others agree with most and that the 
 lies deepest in; the piece under the click is kept. Every further click is a geodesic
 correction on the superpixels (Bai and Sapiro 2007; Gulshan et al. 2010's geodesic
 seeds): on the side of the mask where the click landed, what the click reaches more
-cheaply than the other side's stand-ins changes sides. The clicks are hard: the mask
+cheaply than the other side's stand-ins changes sides; a positive click off the mask may
+instead add the piece of one of auto's hypotheses that holds it, when the others agree.
+After every click the pixels within a superpixel's width of the boundary are decided
+again by local colour models, smoothed by a guided filter (thin parts, fine outlines).
+The clicks are hard: the mask
 holds every positive click and none of the negative ones; the pieces without a
 positive click are dropped, holes filled unless a negative click is in one.
 """
@@ -31,7 +35,7 @@ import numpy as np
 from jeanscv.clicks import ObjectClicks
 from jeanscv.errors import JeansError
 
-from .consensus import iou
+from .consensus import border_shares, iou, spans_width
 from .masks import MORPH_FRACTION, disk, downscale, fill_holes, outer_contour, resize, shape_for
 from .photo import Segmentation, _run_grabcut, _validate_image
 
@@ -59,6 +63,20 @@ _PROBABLE_RADIUS = 0.3
 #: costs about 1 s at 480 px and 0.15 s at 160, and on the shared photos the first
 #: click's mean IoU is 0.636 at 480, 0.642 at 240, 0.648 at 160 (0.622 without it).
 _CUT_SIZE = 160
+#: A hypothesis piece that a positive click offers may not reach more than this share of
+#: the top, left or right side where the mask does not reach it already.
+_PIECE_CONTACT = 0.1
+#: The pixel refinement: colour histograms of ``_COLOUR_BITS`` bits a channel, learned
+#: within ``_MODEL_REACH`` superpixel widths of the boundary; the mask's weight as a
+#: prior; the guided filter's radius (a share of a superpixel's width) and its
+#: regularisation (RGB in [0, 1]). On the shared photos a prior of 0.15 gives IoU@5
+#: 0.859 and 0.3 gives 0.854, but 0.15 lets white trousers leak into a white sky and
+#: loses 0.08 on the hockey players after three clicks: the stronger prior is safer.
+_COLOUR_BITS = 4
+_MODEL_REACH = 2.0
+_PRIOR_WEIGHT = 0.3
+_FILTER_FRACTION = 0.4
+_FILTER_EPS = 0.01
 #: Weight of the click's relative depth against agreement when the first click chooses.
 _DEPTH_WEIGHT = 0.5
 
@@ -98,6 +116,7 @@ class ClickSession:
         self._cache: dict[tuple, np.ndarray] = {}
         self._seed_radius = max(1, round(_SEED_FRACTION * min(self.size)))
         self._graph = _ClickGraph(self.rgb)
+        self._pixels = _PixelRefiner(self.rgb)
 
     # ------------------------------------------------------------------ coordinates
     def _to_working(self, point: Point) -> tuple[int, int]:
@@ -148,13 +167,17 @@ class ClickSession:
 
     # ------------------------------------------------------------------ steps
     def _after(self, clicks: tuple) -> np.ndarray:
-        """The mask after ``clicks`` ((sign, working pixel) pairs, in order), remembered."""
+        """The mask after ``clicks`` ((sign, working pixel) pairs, in order), its boundary
+        refined at pixel level, remembered (the next click starts from it)."""
         if clicks in self._cache:
             return self._cache[clicks]
         if len(clicks) == 1:
             mask = self._first(clicks[0][1])
         else:
             mask = self._step(self._after(clicks[:-1]), clicks)
+        pos = [p for sign, p in clicks if sign == "+"]
+        neg = [p for sign, p in clicks if sign == "-"]
+        mask = _constrained(self._pixels.refine(mask), pos, neg)
         if len(self._cache) >= _CACHED_SEQUENCES:
             del self._cache[next(iter(self._cache))]  # the oldest: a session stays bounded
         self._cache[clicks] = mask
@@ -169,18 +192,7 @@ class ClickSession:
         candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
         candidates["click"] = self._click_grabcut(point)
         candidates["geodesic"] = self._geodesic_first(point)
-        if len(candidates) == 1:
-            return next(iter(candidates.values()))
-        names = list(candidates)
-        # Agreement with the others, and how deep inside the click lies (a person clicks
-        # the middle of the thing): a mask the click only grazes is likely the wrong one.
-        scores = {
-            a: np.mean([iou(candidates[a], candidates[b]) for b in names if b != a])
-            + _DEPTH_WEIGHT * _relative_depth(candidates[a], x, y)
-            for a in names
-        }
-        best = candidates[max(names, key=lambda n: (scores[n], n == "click"))]
-        return _constrained(best, [point], [])
+        return _constrained(candidates[_agreed(candidates, point, "click")], [point], [])
 
     def _click_grabcut(self, point: tuple[int, int]) -> np.ndarray:
         """GrabCut seeded at the click, on a copy of ``_CUT_SIZE``: probably the object
@@ -224,7 +236,8 @@ class ClickSession:
         from the click (the background spreads along the border); and, at a price of
         ``_CORE_PRICE``, the rest of the wrong side farther than ``_CORE_REACH`` times
         the click's depth, so a click takes what it reaches without crossing an edge
-        (a whole sky) but not what lies beyond one.
+        (a whole sky) but not what lies beyond one. A positive click off the mask may
+        add a piece of auto's hypotheses instead (:meth:`_with_pieces`).
         """
         sign, (x, y) = clicks[-1]
         graph = self._graph
@@ -251,7 +264,27 @@ class ClickSession:
         mask[flip[graph.labels]] = sign == "+"
         pos = [p for s, p in clicks if s == "+"]
         neg = [p for s, p in clicks if s == "-"]
+        if sign == "+" and not previous[y, x]:
+            mask = self._with_pieces(previous, mask, (x, y), neg)
         return _constrained(mask, pos, neg)
+
+    def _with_pieces(self, previous: np.ndarray, grown: np.ndarray, point, neg: list) -> np.ndarray:
+        """A positive click outside the mask: of the geodesic growth and the pieces of
+        auto's hypotheses that hold the click (and no negative click), the addition the
+        others agree with most."""
+        x, y = point
+        added = {"geodesic": grown & ~previous}  # what the geodesic correction adds
+        for name, hypothesis in self._hypotheses.items():
+            if not hypothesis[y, x]:
+                continue
+            piece = _constrained(hypothesis, [point], [])
+            if any(piece[ny, nx] for nx, ny in neg):
+                continue
+            addition = piece & ~previous
+            if _new_border_strip(addition, previous):
+                continue
+            added[name] = addition
+        return previous | added[_agreed(added, point, "geodesic")]
 
 
 def _seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, radius: int) -> np.ndarray:
@@ -300,6 +333,69 @@ def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
     for x, y in neg:
         filled[y, x] = False
     return filled
+
+
+class _PixelRefiner:
+    """Re-decides the pixels near a superpixel mask's boundary, where superpixels are too
+    coarse (thin parts, fine outlines): each pixel of a band one superpixel wide takes
+    the side its colour is likelier on, by histograms of the colours just inside and just
+    outside the mask (GrabCut's colour models, Rother et al. 2004, learned locally), with
+    a little of the mask itself as a prior; the probabilities are smoothed with a guided
+    filter of the image (edge-aware smoothing in place of a graph cut's: cost-volume
+    filtering, Rhemann et al. 2011; guided filter, He et al. 2010), then halved."""
+
+    def __init__(self, rgb: np.ndarray):
+        self.guide = rgb.astype(np.float32) / 255.0
+        bins = (rgb >> (8 - _COLOUR_BITS)).astype(np.int32)
+        self.colour = (bins[..., 0] << (2 * _COLOUR_BITS)) | (bins[..., 1] << _COLOUR_BITS) | bins[..., 2]
+        self.band = max(2, round(_REGION_FRACTION * max(rgb.shape[:2])))
+        self.radius = max(1, round(_FILTER_FRACTION * self.band))
+
+    def refine(self, mask: np.ndarray) -> np.ndarray:
+        if mask.all() or not mask.any():
+            return mask
+        inside = _interior_distance(mask)
+        outside = _interior_distance(~mask)
+        depth = np.maximum(inside, outside)  # distance to the boundary, either side
+        near = depth <= _MODEL_REACH * self.band
+        band = depth <= self.band
+        count = 1 << (3 * _COLOUR_BITS)
+        fg = np.bincount(self.colour[near & mask], minlength=count) + 1.0
+        bg = np.bincount(self.colour[near & ~mask], minlength=count) + 1.0
+        fg /= fg.sum()
+        bg /= bg.sum()
+        likely = (fg / (fg + bg)).astype(np.float32)[self.colour]
+        belief = (1.0 - _PRIOR_WEIGHT) * likely + _PRIOR_WEIGHT * mask.astype(np.float32)
+        smooth = cv2.ximgproc.guidedFilter(self.guide, belief, self.radius, _FILTER_EPS)
+        refined = mask.copy()
+        refined[band] = smooth[band] >= 0.5
+        return refined
+
+
+def _agreed(candidates: dict[str, np.ndarray], point: tuple[int, int], tie: str) -> str:
+    """The name of the candidate mask the others agree with most (mean IoU), plus
+    ``_DEPTH_WEIGHT`` times the click's relative depth in it (a person clicks the middle
+    of the thing: a mask the click only grazes is likely the wrong one); ``tie`` wins ties."""
+    names = list(candidates)
+    if len(names) == 1:
+        return names[0]
+    x, y = point
+    scores = {
+        a: np.mean([iou(candidates[a], candidates[b]) for b in names if b != a])
+        + _DEPTH_WEIGHT * _relative_depth(candidates[a], x, y)
+        for a in names
+    }
+    return max(names, key=lambda n: (scores[n], n == tie))
+
+
+def _new_border_strip(addition: np.ndarray, previous: np.ndarray) -> bool:
+    """True when ``addition`` runs along the top, left or right side (more than
+    ``_PIECE_CONTACT`` of it) where ``previous`` does not reach, or spans the width: what
+    runs along the border is mostly background (Zhu et al. 2014); where the object already
+    reaches a side, more of it there is the object leaving the frame."""
+    before = border_shares(previous)[:3]
+    after = border_shares(addition)[:3]
+    return spans_width(addition) or any(a > _PIECE_CONTACT and b == 0 for a, b in zip(after, before))
 
 
 def _depth(region: np.ndarray, x: int, y: int) -> float:
