@@ -44,6 +44,25 @@ def _single_torch_thread():
     torch.set_num_threads(threads)
 
 
+@pytest.fixture(scope="session")
+def compiled_kernels():
+    """The numba kernels compiled into the on-disk cache before a test that gives a
+    subprocess a deadline: in a fresh clone the first fit compiles them (half a minute, more
+    with two workers compiling at once), which would eat the deadline and make the test
+    depend on what the cache holds. Subprocesses share the cache (same environment)."""
+    from jeanscv.device import fast_available
+
+    if fast_available():
+        from jeanscv import _fast
+        from jeanscv.fitter import fit
+        from testkit.synthetic import silhouette_zoo
+
+        fit(silhouette_zoo(["blob_a"])["blob_a"], iterations=3)  # the step loop and the objective
+        square = np.array([[4.0, 4.0], [12.0, 4.0], [12.0, 12.0], [4.0, 12.0]])
+        _fast.polygon_coverage(square, 16, 16)  # the compositing's rasterizers
+        _fast.stroke_coverage(square[:1], square[1:2], 16, 16)
+
+
 def float64_tensor(array):
     """``array`` as a float64 torch tensor."""
     import torch

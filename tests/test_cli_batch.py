@@ -131,6 +131,7 @@ def test_folder_without_recursion_globs_and_name_clashes(tmp_path, run_cli, monk
     assert _files(tmp_path / "out") == ["a.jeans.png", "a.svg.jeans.png", "b.jeans.png"]
 
 
+@pytest.mark.usefixtures("compiled_kernels")
 def test_python_m_jeanscv_with_worker_processes(tmp_path):
     _tree(tmp_path / "in", corrupt=True)
     done = subprocess.run(
@@ -154,6 +155,7 @@ def test_python_m_jeanscv_with_worker_processes(tmp_path):
     assert lines[-1].startswith("3 ok, 1 failed, 1 skipped in ")
 
 
+@pytest.mark.usefixtures("compiled_kernels")
 @pytest.mark.parametrize(("sig", "code", "jobs"), [(signal.SIGINT, 130, "1"), (signal.SIGTERM, 143, "2")])
 def test_interrupt_keeps_finished_outputs_and_no_partial_files(tmp_path, sig, code, jobs):
     folder = tmp_path / "in"

@@ -272,6 +272,7 @@ def test_pip_installs_the_example_with_the_same_entry_points(tmp_path):
     assert (target / PACKAGE / "__init__.py").read_bytes() == (EXAMPLE / PACKAGE / "__init__.py").read_bytes()
 
 
+@pytest.mark.usefixtures("compiled_kernels")
 def test_the_cli_offers_and_uses_plugin_garments_and_extractors(site, tmp_path):
     """The installed example plugin from the command line, in a fresh process."""
     from PIL import Image

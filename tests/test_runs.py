@@ -19,7 +19,10 @@ import pytest
 from conftest import write_silhouette_png
 from test_faults import assert_valid_outputs, temporaries
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc; POSIX signals")
+pytestmark = [
+    pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc; POSIX signals"),
+    pytest.mark.usefixtures("compiled_kernels"),  # the kills land mid-batch, not mid-compile
+]
 
 # Torch backend: no kernel compilation in a fresh process; enough iterations that a kill
 # usually lands mid-batch (the assertions hold wherever it lands).
