@@ -1,0 +1,222 @@
+"""What a person waits for, side by side in one run: the first command after install (kernels
+not compiled yet), one 12-MP photo in a fresh process, the imports on that path, a folder of
+varied 12-MP photos with ``-j 2`` (and where a photo's time goes), and the default fit.
+
+    python -m bench.latency [--photos N] [--skip-cold]
+
+- *first run*: ``jeanscv sample_images/cat.jpg`` with an empty kernel cache
+  (``NUMBA_CACHE_DIR``) and an empty bytecode cache (``PYTHONPYCACHEPREFIX``), as after
+  ``pip install``; then the same command again (cached), and whether both wrote the same bytes.
+- *fresh process*: ``jeanscv PHOTO`` on a 12-MP copy of a shared photo, kernels cached,
+  median of three runs after one to warm the disk cache.
+- *imports*: seconds of each heavy import on that path, each measured in its own fresh
+  process after the ones before it (numpy, OpenCV, the library, numba, loading the cached
+  kernels, scipy's graph routines).
+- *batch*: the shared real photos (``../shared/real_photos``) upscaled to 12 MP, and a few
+  textured synthetic scenes (bench.batch_speed), through ``jeanscv FOLDER -j 2``; then the
+  stages of each photo in one process on one core (decode, segmentation, fit, denim,
+  encode), summed over the folder.
+- *fit*: CPU seconds of the default fit on the paper's silhouettes (median).
+
+Timings drift with other jobs on the machine: compare figures from one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench.batch_speed import make_photos, run
+
+ROOT = Path(__file__).resolve().parents[1]
+PHOTOS = ROOT.parent / "shared" / "real_photos"
+SILHOUETTES = ROOT.parent / "shared" / "silhouettes"
+TARGETS = {
+    "first run": "<= 10 s",
+    "fresh process": "<= 1.2 s",
+    "imports": "<= 0.4 s",
+    "batch": "<= 0.40 s a photo",
+    "fit": "<= 0.05 s",
+}
+
+
+def _command(args: list[str], env: dict | None = None) -> float:
+    began = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "jeanscv", *args], check=True, env=env, capture_output=True)
+    return time.perf_counter() - began
+
+
+def first_run(tmp: Path) -> tuple[float, float, bool]:
+    """Wall seconds of the README's first command with empty caches, then cached, and
+    whether the two outputs are the same bytes."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "kernels"), "PYTHONPYCACHEPREFIX": str(tmp / "pyc")}
+    photo = str(ROOT / "sample_images" / "cat.jpg")
+    cold = _command([photo, "-o", str(tmp / "cold"), "-q"], env)
+    warm = _command([photo, "-o", str(tmp / "warm"), "-q"], env)
+    same = (tmp / "cold" / "cat.jeans.jpg").read_bytes() == (tmp / "warm" / "cat.jeans.jpg").read_bytes()
+    return cold, warm, same
+
+
+# Each import of the photo path in a fresh process after the ones listed before it, so
+# that a figure is that module's own cost (argv: how many of IMPORTS to do first).
+IMPORTS = (
+    ("numpy", "import numpy"),
+    ("OpenCV", "import cv2"),
+    ("the library and command line", "import jeanscv_cli.main, jeanscv.pipeline"),
+    ("numba", "import numba"),
+    ("the kernels' module", "import jeanscv._fast.objective"),
+    (
+        "loading the cached kernels",
+        "from jeanscv._fast import Objective; from jeanscv.garments import JEANS; import numpy as np;"
+        "from jeanscv.adam import BatchAdam;"
+        "k = Objective(JEANS, 'all', {'coverage': 1.0}); k(JEANS.template[None], np.ones((16, 16)), 0.25);"
+        "k.descend(BatchAdam(JEANS.template[None] / 16, 0.01), np.ones((16, 16)), 1, 0.25)",
+    ),
+    ("scipy.sparse.csgraph", "import scipy.sparse.csgraph"),
+)
+
+_TIMED_IMPORT = (
+    "import sys, time\n"
+    "from bench.latency import IMPORTS\n"
+    "count = int(sys.argv[1])\n"
+    "for _, code in IMPORTS[:count]:\n"
+    "    exec(code)\n"
+    "began = time.perf_counter()\n"
+    "exec(IMPORTS[count][1])\n"
+    "print(time.perf_counter() - began)\n"
+)
+
+
+def imports() -> list[tuple[str, float]]:
+    """Median seconds of each import of IMPORTS over three fresh processes."""
+    figures = []
+    for count, (name, _) in enumerate(IMPORTS):
+        times = []
+        for _ in range(3):
+            done = subprocess.run(
+                [sys.executable, "-c", _TIMED_IMPORT, str(count)], check=True, capture_output=True, text=True, cwd=ROOT
+            )
+            times.append(float(done.stdout.split()[-1]))
+        figures.append((name, statistics.median(times)))
+    return figures
+
+
+def upscaled_folder(folder: Path, count: int, synthetic: int) -> None:
+    """The shared real photos (first ``count``) as 12-MP JPEGs, plus ``synthetic`` textured scenes."""
+    from PIL import Image
+
+    folder.mkdir(parents=True)
+    names = sorted(p for p in PHOTOS.glob("*.jpg") if not p.name.endswith(".mask.png"))[:count]
+    for path in names:
+        with Image.open(path) as image:
+            image = image.convert("RGB")
+            scale = (12e6 / (image.width * image.height)) ** 0.5
+            image.resize((round(image.width * scale), round(image.height * scale)), Image.LANCZOS).save(
+                folder / path.name, quality=92
+            )
+    make_photos(folder, range(synthetic), 12.0)
+
+
+_STAGES = (
+    "import sys, time, json\n"
+    "from pathlib import Path\n"
+    "import cv2\n"
+    "cv2.setNumThreads(1)\n"
+    "from jeanscv import api\n"
+    "from jeanscv.io.write import encode_image\n"
+    "totals = {}\n"
+    "def timed(name, began):\n"
+    "    now = time.perf_counter()\n"
+    "    totals[name] = totals.get(name, 0.0) + now - began\n"
+    "    return now\n"
+    "for path in sorted(Path(sys.argv[1]).glob('*.jpg')):\n"
+    "    began = time.perf_counter()\n"
+    "    loaded = api.load_image(path)\n"
+    "    began = timed('decode', began)\n"
+    "    silhouette = api.extract_silhouettes(loaded.pixels)[0]\n"
+    "    began = timed('segmentation', began)\n"
+    "    result = api.fit(silhouette)\n"
+    "    began = timed('fit', began)\n"
+    "    image = api.composite(loaded.pixels, result, silhouette)\n"
+    "    began = timed('denim', began)\n"
+    "    encode_image(image, 'JPEG', quality=95, exif=loaded.exif, icc_profile=loaded.icc_profile)\n"
+    "    timed('encode', began)\n"
+    "print(json.dumps(totals))\n"
+)
+
+
+def stages(folder: Path) -> dict[str, float]:
+    """Seconds per photo of each stage, one process, one core (after one warm-up photo)."""
+    import json
+
+    done = subprocess.run(
+        [sys.executable, "-c", _STAGES, str(folder)],
+        check=True,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    count = len(list(folder.glob("*.jpg")))
+    return {name: seconds / count for name, seconds in json.loads(done.stdout.splitlines()[-1]).items()}
+
+
+def fit_seconds() -> float:
+    """Median CPU seconds of the default fit over the paper's silhouettes (or the zoo)."""
+    from bench.fit_speed import shapes, timed
+    from jeanscv.fitter import fit
+
+    silhouettes = shapes()
+    fit(next(iter(silhouettes.values())), iterations=5)  # kernels loaded
+    return statistics.median(timed(s, 3) for s in silhouettes.values())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--photos", type=int, default=18, help="shared photos in the batch (at most 18)")
+    parser.add_argument("--synthetic", type=int, default=4, help="textured synthetic scenes in the batch")
+    parser.add_argument("--skip-cold", action="store_true", help="skip the first run (a minute or so)")
+    args = parser.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        if not args.skip_cold:
+            cold, warm, same = first_run(tmp / "first")
+            rows.append(("first run", f"{cold:.1f} s (then {warm:.1f} s cached; same bytes: {same})"))
+        folder = tmp / "photos"
+        upscaled_folder(folder, args.photos, args.synthetic)
+        photos = sorted(folder.glob("*.jpg"))
+        one = [str(photos[0]), "-o", str(tmp / "one"), "-q", "--overwrite"]
+        _command(one)
+        fresh = statistics.median(_command(one) for _ in range(3))
+        rows.append(("fresh process", f"{fresh:.2f} s ({photos[0].name}, 12 MP)"))
+        figures = imports()
+        heavy = sum(seconds for name, seconds in figures if name not in ("numpy", "OpenCV"))
+        rows.append(
+            (
+                "imports",
+                f"{heavy:.2f} s beyond numpy and OpenCV ("
+                + ", ".join(f"{name} {seconds:.2f}" for name, seconds in figures)
+                + ")",
+            )
+        )
+        wall, _ = run(folder, tmp / "out", 2)
+        rows.append(("batch", f"{wall / len(photos):.2f} s a photo ({len(photos)} photos, -j 2, {wall:.0f} s)"))
+        per_stage = stages(folder)
+        rows.append(("fit", f"{fit_seconds():.3f} s"))
+    print("| what a person waits for | now | target |\n|---|---|---|")
+    for name, figure in rows:
+        print(f"| {name} | {figure} | {TARGETS[name]} |")
+    print("\nOne photo's stages (12 MP, one process, one core, seconds a photo):\n")
+    print("| " + " | ".join(per_stage) + " | total |\n|" + "---|" * (len(per_stage) + 1))
+    print("| " + " | ".join(f"{s:.3f}" for s in per_stage.values()) + f" | {sum(per_stage.values()):.3f} |")
+
+
+if __name__ == "__main__":
+    main()
