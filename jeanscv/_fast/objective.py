@@ -16,7 +16,7 @@ from their bands), which are listed, and the gradient's corrections to the value
 lone stroke's cell has are made over that list. Everything costs O(band cells +
 overlaps), not O(canvas).
 
-One topic in about 800 lines: the kernels below call one another inside numba and are
+One topic in about 900 lines: the kernels below call one another inside numba and are
 compiled and cached together (``cache=True`` keys on this file), so they stay in one
 module; the rasterizer they share lives in ``raster.py``.
 """
@@ -168,26 +168,9 @@ def _sorted_cells(touched, listed, counts, r, cols):
 
 @njit(cache=True)
 def _fill_terms(
-    v,
-    s,
-    s_rows,
-    s_total,
-    w_cov,
-    w_inside,
-    grad,
-    need_grad,
-    diff,
-    touched,
-    listed,
-    counts,
-    wind,
-    cell_grad,
-    prefix,
-    col0,
-    ts,
-    axes,
-    lines,
-):
+    v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, touched, listed, counts, wind, cell_grad,
+    prefix, col0, ts, axes, lines,
+):  # fmt: skip
     """``(coverage, inside)`` of one candidate; adds their weighted gradient to ``grad``.
 
     ``s_rows``: ``(C, C + 1)`` prefix sums of ``S`` along rows. Work is O(pieces + rows
@@ -209,61 +192,9 @@ def _fill_terms(
     rows, cols = max(rows, 0), max(cols, 0)
     area = not_on_body = uncovered_in = s_window = 0.0
     if rows and cols:
-        for r in range(rows):
-            col0[r] = ox
-        cells = (touched, listed, counts)
-        for i in range(n):
-            j = (i + 1) % n
-            scatter_edge(
-                v[i, 0],
-                v[i, 1],
-                v[j, 0],
-                v[j, 1],
-                0.0,
-                float(size),
-                0.0,
-                float(size),
-                oy,
-                col0,
-                rows,
-                cols,
-                diff,
-                ts,
-                axes,
-                lines,
-                cells,
-            )
-        for r in range(rows):
-            y = oy + r
-            s_window += s_rows[y, ox + cols] - s_rows[y, ox]
-            acc = 0.0
-            m = _sorted_cells(touched, listed, counts, r, cols)
-            for i in range(m):
-                c = listed[r, i]
-                acc += diff[r, c]
-                diff[r, c] = 0.0
-                end = listed[r, i + 1] if i + 1 < m else cols
-                f = min(abs(acc), 1.0)
-                last = end
-                if end - c > 1 and _whole(acc):
-                    # the cells after the first hold f each, with no gradient
-                    run = end - c - 1
-                    run_s = s_rows[y, ox + end] - s_rows[y, ox + c + 1]
-                    area += f * run
-                    if f >= 0.5:
-                        not_on_body += f * run - run_s
-                    else:
-                        uncovered_in += run_s - f * run
-                    last = c + 1
-                wind[r, c] = acc  # (the cells up to the next listed one hold the same)
-                for cell in range(c, last):
-                    sv = s[y, ox + cell]
-                    area += f
-                    if f > sv:
-                        not_on_body += f - sv
-                    else:
-                        uncovered_in += sv - f
-            diff[r, cols] = diff[r, cols + 1] = 0.0  # pieces right of the window
+        area, not_on_body, uncovered_in, s_window = _fill_sums(
+            v, s, s_rows, oy, ox, rows, cols, diff, touched, listed, counts, wind, col0, ts, axes, lines
+        )
     total = max(s_total, _EPS)
     uncovered = (s_total - s_window) + uncovered_in
     coverage = (0.5 - uncovered / total) ** 2
@@ -277,6 +208,73 @@ def _fill_terms(
         return coverage, inside
     d_uncovered = w_cov * -2.0 * (0.5 - uncovered / total) / total
     d_area = -w_inside * not_on_body / (area_den * area_den) if area >= _EPS else 0.0
+    _fill_gradient(
+        v, s, oy, ox, rows, cols, d_uncovered, d_area, w_inside / area_den, grad, touched, listed, counts, wind,
+        cell_grad, prefix, col0, ts, axes, lines,
+    )  # fmt: skip
+    return coverage, inside
+
+
+@njit(cache=True)
+def _fill_sums(v, s, s_rows, oy, ox, rows, cols, diff, touched, listed, counts, wind, col0, ts, axes, lines):
+    """The polygon's pieces scattered on its ``rows x cols`` window at ``(ox, oy)`` and
+    summed along each row: ``(area, not_on_body, uncovered_in, s_window)``, the sums of
+    the fill terms inside the window; each listed cell's winding kept in ``wind``."""
+    size = s.shape[0]
+    n = v.shape[0]
+    area = not_on_body = uncovered_in = s_window = 0.0
+    for r in range(rows):
+        col0[r] = ox
+    cells = (touched, listed, counts)
+    for i in range(n):
+        j = (i + 1) % n
+        scatter_edge(
+            v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size), oy, col0, rows, cols, diff,
+            ts, axes, lines, cells,
+        )  # fmt: skip
+    for r in range(rows):
+        y = oy + r
+        s_window += s_rows[y, ox + cols] - s_rows[y, ox]
+        acc = 0.0
+        m = _sorted_cells(touched, listed, counts, r, cols)
+        for i in range(m):
+            c = listed[r, i]
+            acc += diff[r, c]
+            diff[r, c] = 0.0
+            end = listed[r, i + 1] if i + 1 < m else cols
+            f = min(abs(acc), 1.0)
+            last = end
+            if end - c > 1 and _whole(acc):
+                # the cells after the first hold f each, with no gradient
+                run = end - c - 1
+                run_s = s_rows[y, ox + end] - s_rows[y, ox + c + 1]
+                area += f * run
+                if f >= 0.5:
+                    not_on_body += f * run - run_s
+                else:
+                    uncovered_in += run_s - f * run
+                last = c + 1
+            wind[r, c] = acc  # (the cells up to the next listed one hold the same)
+            for cell in range(c, last):
+                sv = s[y, ox + cell]
+                area += f
+                if f > sv:
+                    not_on_body += f - sv
+                else:
+                    uncovered_in += sv - f
+        diff[r, cols] = diff[r, cols + 1] = 0.0  # pieces right of the window
+    return area, not_on_body, uncovered_in, s_window
+
+
+@njit(cache=True)
+def _fill_gradient(
+    v, s, oy, ox, rows, cols, d_uncovered, d_area, d_not_on_body, grad, touched, listed, counts, wind, cell_grad,
+    prefix, col0, ts, axes, lines,
+):  # fmt: skip
+    """Adds the fill terms' gradient to ``grad``: dL/dW per listed cell and its prefix
+    sums along the row, gathered back along the pieces of each edge; clears the lists."""
+    size = s.shape[0]
+    n = v.shape[0]
     for r in range(rows):
         # dL/dW and its prefix sums, written where pieces read them: the listed cells
         running = 0.0
@@ -299,7 +297,7 @@ def _fill_terms(
                 if sv - f >= 0.0:
                     g -= d_uncovered
                 if f - sv >= 0.0:
-                    g += w_inside / area_den
+                    g += d_not_on_body
                 g = g if w > 0 else -g
                 if cell == c:
                     cell_grad[r, c] = g
@@ -311,30 +309,13 @@ def _fill_terms(
         j = (i + 1) % n
         g4[0] = g4[1] = g4[2] = g4[3] = 0.0
         gather_edge(
-            v[i, 0],
-            v[i, 1],
-            v[j, 0],
-            v[j, 1],
-            0.0,
-            float(size),
-            0.0,
-            float(size),
-            oy,
-            col0,
-            rows,
-            cols,
-            cell_grad,
-            prefix,
-            ts,
-            axes,
-            lines,
-            g4,
-        )
+            v[i, 0], v[i, 1], v[j, 0], v[j, 1], 0.0, float(size), 0.0, float(size), oy, col0, rows, cols, cell_grad,
+            prefix, ts, axes, lines, g4,
+        )  # fmt: skip
         grad[i, 0] += g4[0] - g4[2]
         grad[i, 1] += g4[1] - g4[3]
         grad[j, 0] += g4[2]
         grad[j, 1] += g4[3]
-    return coverage, inside
 
 
 @njit(cache=True)
@@ -367,25 +348,13 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
         totals: ``(B,)`` out, the weighted totals (:func:`weighted_totals`); terms: ``(B, 8)``
             out; grad: ``(B, N, 2)`` out, d(weighted total)/d vertices.
         scratch: a :class:`Scratch` for this canvas and garment.
+
+    Per candidate, in phases: the shape terms (:func:`_shape_terms`), the fill terms
+    (:func:`_fill_terms`), the strokes on their bands (:func:`_stroke_bands`), their
+    overlaps (:func:`_overlap_sums`), the stroke terms, and the strokes' gradient
+    (:func:`_stroke_gradient`).
     """
-    s, s_rows, half_width, weights, waist, hems, residual, is_open, is_closed, pair, cos_r, sin_r = target
-    (
-        mask,
-        diff,
-        touched,
-        listed,
-        counts,
-        wind,
-        cell_grad,
-        prefix,
-        band_diff,
-        band_wind,
-        overlap_pixel,
-        overlap_bits,
-        overlap_alpha,
-        overlap_fits,
-        overlap_rows,
-    ) = scratch
+    s, s_rows, half_width, weights = target.s, target.s_rows, target.half_width, target.weights
     batch, n = vertices.shape[0], vertices.shape[1]
     size = s.shape[0]
     s_total = 0.0
@@ -393,10 +362,107 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
         s_total += s_rows[y, size]
     margin = half_width + 2.0
     low, high = -margin, size + margin
-    free = math.cos(math.radians(UPRIGHT_FREE_DEGREES))
-    saturated = free - math.cos(math.radians(UPRIGHT_SATURATE_DEGREES))
-
     finite = np.ones(batch, np.bool_)
+    rows_limit = _rows_limit(vertices, half_width, low, high, finite)
+
+    crossings = 4 * (size + 4 * int(margin) + 16)
+    ts, axes, lines = np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings)
+    col0 = np.empty(max(size, rows_limit), np.int64)
+    band_prefix = np.empty((rows_limit, BAND_COLUMNS + 1))
+    col_start = np.empty((n, rows_limit), np.int64)
+    band_lo = np.empty((n, rows_limit), np.int64)
+    band_hi = np.empty((n, rows_limit), np.int64)
+    row_start = np.empty(n, np.int64)
+    band_count = np.empty(n, np.int64)
+    x_major = np.empty(n, np.bool_)
+    labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
+    for e in range(n):
+        labels[0, e], labels[1, e] = target.is_open[e], target.is_closed[e]
+    outline = np.empty((OUTLINE_POINTS, 2))
+    g_outline = np.empty((OUTLINE_POINTS, 2))
+    areas = np.empty(n)
+    on_body = np.empty(n)
+    overlap = np.empty((n, n))
+    pair_excess = np.empty((n, n))
+
+    for b in range(batch):
+        v = vertices[b]
+        g_v = grad[b]
+        for i in range(n):
+            g_v[i, 0] = g_v[i, 1] = 0.0
+        if not finite[b]:
+            for k in range(terms.shape[1]):
+                terms[b, k] = np.nan
+            continue
+        _shape_terms(v, target, need_grad, terms[b], g_v)
+        coverage, inside = _fill_terms(
+            v,
+            s,
+            s_rows,
+            s_total,
+            weights[COVERAGE],
+            weights[INSIDE],
+            g_v,
+            need_grad,
+            scratch.diff,
+            scratch.touched,
+            scratch.listed,
+            scratch.counts,
+            scratch.wind,
+            scratch.cell_grad,
+            scratch.prefix,
+            col0,
+            ts,
+            axes,
+            lines,
+        )
+        terms[b, COVERAGE] = coverage
+        terms[b, INSIDE] = inside
+
+        _stroke_bands(
+            v, target, scratch, low, high, rows_limit, outline, col_start, row_start, band_count, x_major,
+            band_lo, band_hi, areas, on_body, ts, axes, lines,
+        )  # fmt: skip
+        # unions of the open and the closed edges: excess where their strokes stack past 1
+        union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
+        overlaps = _overlap_sums(
+            target, scratch, row_start, col_start, band_count, band_lo, band_hi, x_major, labels, union, overlap,
+            pair_excess,
+        )  # fmt: skip
+        for e in range(n):
+            for u in range(2):
+                if labels[u, e]:
+                    union[u, 0] += on_body[e]
+                    union[u, 1] += areas[e]
+        union_den = np.empty(2)
+        for u in range(2):
+            raw = union[u, 1] - union[u, 2]
+            union_den[u] = max(raw, _EPS)
+        terms[b, OPEN] = -((union[0, 0] - union[0, 3]) / union_den[0])
+        terms[b, CLOSED] = (union[1, 0] - union[1, 3]) / union_den[1]
+        inter = 0.0
+        for e in range(n):
+            for k in range(e + 1, n):
+                if target.pair[e, k]:
+                    inter += overlap[e, k] / max(areas[e] + areas[k] - pair_excess[e, k], _EPS)
+        terms[b, INTER] = inter
+
+        if not (need_grad and (weights[OPEN] != 0.0 or weights[CLOSED] != 0.0 or weights[INTER] != 0.0)):
+            _clear_mask(scratch.mask, size, n, row_start, col_start, band_count, band_lo, band_hi, x_major)
+            continue
+        _stroke_gradient(
+            v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels,
+            row_start, col_start, band_count, band_lo, band_hi, x_major, outline, g_outline, band_prefix,
+            ts, axes, lines, g_v,
+        )  # fmt: skip
+    weighted_totals(terms, weights, totals)
+
+
+@njit(cache=True)
+def _rows_limit(vertices, half_width, low, high, finite):
+    """Rows enough for every stroke band of the candidates with finite vertices; marks
+    the others false in ``finite``."""
+    batch, n = vertices.shape[0], vertices.shape[1]
     rows_limit = np.int64(1)  # not a literal 1: numba would compile stroke_band for it
     for b in range(batch):
         for i in range(n):
@@ -417,314 +483,298 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
                         high,
                     ),
                 )
+    return rows_limit
 
-    crossings = 4 * (size + 4 * int(margin) + 16)
-    ts, axes, lines = np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings)
-    col0 = np.empty(max(size, rows_limit), np.int64)
-    band_prefix = np.empty((rows_limit, BAND_COLUMNS + 1))
-    col_start = np.empty((n, rows_limit), np.int64)
-    band_lo = np.empty((n, rows_limit), np.int64)
-    band_hi = np.empty((n, rows_limit), np.int64)
-    row_start = np.empty(n, np.int64)
-    band_count = np.empty(n, np.int64)
-    x_major = np.empty(n, np.bool_)
-    present = np.empty(n, np.int64)  # the strokes at one pixel
-    labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
-    for e in range(n):
-        labels[0, e], labels[1, e] = is_open[e], is_closed[e]
-    outline = np.empty((OUTLINE_POINTS, 2))
-    g_outline = np.empty((OUTLINE_POINTS, 2))
-    areas = np.empty(n)
-    on_body = np.empty(n)
-    overlap = np.empty((n, n))
-    pair_excess = np.empty((n, n))
 
-    for b in range(batch):
-        v = vertices[b]
-        g_v = grad[b]
-        for i in range(n):
-            g_v[i, 0] = g_v[i, 1] = 0.0
-        if not finite[b]:
-            for k in range(terms.shape[1]):
-                terms[b, k] = np.nan
-            continue
-
-        # center and rigid, on normalised coordinates
-        wx = (v[waist[0], 0] + v[waist[1], 0]) / size / 2
-        wy = (v[waist[0], 1] + v[waist[1], 1]) / size / 2
-        terms[b, CENTER] = (wx - 0.5) ** 2 + (wy - 0.5) ** 2
-        rigid = 0.0
-        res = np.zeros((n, 2))
-        for i in range(n):
+@njit(cache=True)
+def _shape_terms(v, target, need_grad, terms, g_v):
+    """``center``, ``rigid`` and ``upright`` of one candidate into ``terms`` ``(8,)``;
+    adds their weighted gradient to ``g_v``."""
+    n = v.shape[0]
+    size = target.s.shape[0]
+    waist, weights, residual = target.waist, target.weights, target.residual
+    # center and rigid, on normalised coordinates
+    wx = (v[waist[0], 0] + v[waist[1], 0]) / size / 2
+    wy = (v[waist[0], 1] + v[waist[1], 1]) / size / 2
+    terms[CENTER] = (wx - 0.5) ** 2 + (wy - 0.5) ** 2
+    rigid = 0.0
+    res = np.zeros((n, 2))
+    for i in range(n):
+        for k in range(n):
+            res[i, 0] += residual[i, k] * (v[k, 0] / size)
+            res[i, 1] += residual[i, k] * (v[k, 1] / size)
+        rigid += res[i, 0] ** 2 + res[i, 1] ** 2
+    terms[RIGID] = rigid
+    if need_grad:
+        for k in range(2):
+            g_v[waist[k], 0] += weights[CENTER] * (wx - 0.5) / size
+            g_v[waist[k], 1] += weights[CENTER] * (wy - 0.5) / size
+        if weights[RIGID] != 0.0:
             for k in range(n):
-                res[i, 0] += residual[i, k] * (v[k, 0] / size)
-                res[i, 1] += residual[i, k] * (v[k, 1] / size)
-            rigid += res[i, 0] ** 2 + res[i, 1] ** 2
-        terms[b, RIGID] = rigid
-        if need_grad:
-            for k in range(2):
-                g_v[waist[k], 0] += weights[CENTER] * (wx - 0.5) / size
-                g_v[waist[k], 1] += weights[CENTER] * (wy - 0.5) / size
-            if weights[RIGID] != 0.0:
-                for k in range(n):
-                    for i in range(n):
-                        g_v[k, 0] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 0] / size
-                        g_v[k, 1] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 1] / size
-        terms[b, UPRIGHT] = _upright(v, waist, hems, free, saturated, weights[UPRIGHT], g_v, need_grad)
+                for i in range(n):
+                    g_v[k, 0] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 0] / size
+                    g_v[k, 1] += weights[RIGID] * 2.0 * residual[i, k] * res[i, 1] / size
+    free = math.cos(math.radians(UPRIGHT_FREE_DEGREES))
+    saturated = free - math.cos(math.radians(UPRIGHT_SATURATE_DEGREES))
+    terms[UPRIGHT] = _upright(v, waist, target.hems, free, saturated, weights[UPRIGHT], g_v, need_grad)
 
-        coverage, inside = _fill_terms(
-            v,
-            s,
-            s_rows,
-            s_total,
-            weights[COVERAGE],
-            weights[INSIDE],
-            g_v,
-            need_grad,
-            diff,
-            touched,
-            listed,
-            counts,
-            wind,
-            cell_grad,
-            prefix,
-            col0,
+
+@njit(cache=True)
+def _stroke_bands(
+    v, target, scratch, low, high, rows_limit, outline, col_start, row_start, band_count, x_major,
+    band_lo, band_hi, areas, on_body, ts, axes, lines,
+):  # fmt: skip
+    """Every edge's stroke on its band (alphas in ``scratch.band_wind``, each stroke's
+    area and on-body sum), and each stroke's bit in the pixel mask; a pixel that a second
+    stroke reaches flags its row in ``scratch.overlap_rows``: overlaps are the only pixels
+    where the strokes interact."""
+    n = v.shape[0]
+    s, mask, band_diff, band_wind = target.s, scratch.mask, scratch.band_diff, scratch.band_wind
+    size = s.shape[0]
+    for e in range(n):
+        f = (e + 1) % n
+        row_start[e], band_count[e], x_major[e], empty = stroke_band(
+            v[e, 0],
+            v[e, 1],
+            v[f, 0],
+            v[f, 1],
+            target.half_width,
+            low,
+            high,
+            rows_limit,
+            target.cos_r,
+            target.sin_r,
+            outline,
+            col_start[e],
+            band_diff[e],
             ts,
             axes,
             lines,
         )
-        terms[b, COVERAGE] = coverage
-        terms[b, INSIDE] = inside
-
-        # strokes: bands, then pixel scratch; a pixel that a second stroke reaches flags
-        # its row: overlaps are the only pixels where the strokes interact
-        for e in range(n):
-            f = (e + 1) % n
-            row_start[e], band_count[e], x_major[e], empty = stroke_band(
-                v[e, 0],
-                v[e, 1],
-                v[f, 0],
-                v[f, 1],
-                half_width,
-                low,
-                high,
-                rows_limit,
-                cos_r,
-                sin_r,
-                outline,
-                col_start[e],
-                band_diff[e],
-                ts,
-                axes,
-                lines,
-            )
-            bit = mask.dtype.type(1 << e)
-            areas[e] = on_body[e] = 0.0
-            along_x = x_major[e]
-            for r in range(band_count[e]):
-                acc = 0.0
-                lo, hi = BAND_COLUMNS, 0
-                major, start = row_start[e] + r, col_start[e, r]
-                # the row's cells on the canvas; the others hold 0
-                first = max(-start, 0) if 0 <= major < size else BAND_COLUMNS
-                stop = min(size - start, BAND_COLUMNS)
-                for c in range(BAND_COLUMNS):
-                    acc += band_diff[e, r, c]
-                    if c < first or c >= stop or acc == 0.0:
-                        band_wind[e, r, c] = 0.0
-                        continue
-                    band_wind[e, r, c] = acc
-                    alpha = min(abs(acc), 1.0)
-                    x, y = (major, start + c) if along_x else (start + c, major)
-                    lo, hi = min(lo, c), c + 1
-                    p = y * size + x
-                    areas[e] += alpha
-                    on_body[e] += alpha * s[y, x]
-                    old = mask[p]
-                    if old != 0 and old & (old - 1) == 0:
-                        # a new overlap: its row in the band of its lowest stroke
-                        lowest = 0
-                        while not (old >> lowest) & 1:
-                            lowest += 1
-                        overlap_rows[lowest, (x if x_major[lowest] else y) - row_start[lowest]] = True
-                    mask[p] = old | bit
-                band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
-
-        # unions of the open and the closed edges: excess where their strokes stack past 1
-        union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
-        for e in range(n):
-            for k in range(n):
-                overlap[e, k] = pair_excess[e, k] = 0.0
-        # (visited in band order of each pixel's lowest stroke, row by row: the same order
-        # of sums whichever rows hold overlaps)
-        overlaps = 0
-        for e in range(n):
-            for r in range(band_count[e]):
-                if not overlap_rows[e, r]:
+        bit = mask.dtype.type(1 << e)
+        areas[e] = on_body[e] = 0.0
+        along_x = x_major[e]
+        for r in range(band_count[e]):
+            acc = 0.0
+            lo, hi = BAND_COLUMNS, 0
+            major, start = row_start[e] + r, col_start[e, r]
+            # the row's cells on the canvas; the others hold 0
+            first = max(-start, 0) if 0 <= major < size else BAND_COLUMNS
+            stop = min(size - start, BAND_COLUMNS)
+            for c in range(BAND_COLUMNS):
+                acc += band_diff[e, r, c]
+                if c < first or c >= stop or acc == 0.0:
+                    band_wind[e, r, c] = 0.0
                     continue
-                overlap_rows[e, r] = False
-                for c in range(band_lo[e, r], band_hi[e, r]):
-                    if band_wind[e, r, c] == 0.0:
-                        continue
-                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
-                    p = y * size + x
-                    bits = mask[p]
-                    if bits & (bits - 1) == 0 or bits & ((1 << e) - 1):
-                        continue  # one stroke only, or counted at a lower stroke
-                    q = overlaps
-                    overlaps += 1
-                    overlap_pixel[q] = p
-                    overlap_bits[q] = bits
-                    here = overlap_alpha[q]
-                    # the strokes present, in order (sums over them skip only zeros)
-                    count = 0
-                    for k in range(n):
-                        if (bits >> k) & 1:
-                            present[count] = k
-                            count += 1
-                        here[k] = (
-                            _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
-                            if (bits >> k) & 1
-                            else 0.0
-                        )
-                    for u in range(2):
-                        stacked = 0.0
-                        for a in range(count):
-                            if labels[u, present[a]]:
-                                stacked += here[present[a]]
-                        overlap_fits[q, u] = stacked <= 1.0
-                        if stacked > 1.0:
-                            union[u, 2] += stacked - 1.0
-                            union[u, 3] += (stacked - 1.0) * s[y, x]
+                band_wind[e, r, c] = acc
+                alpha = min(abs(acc), 1.0)
+                x, y = (major, start + c) if along_x else (start + c, major)
+                lo, hi = min(lo, c), c + 1
+                p = y * size + x
+                areas[e] += alpha
+                on_body[e] += alpha * s[y, x]
+                old = mask[p]
+                if old != 0 and old & (old - 1) == 0:
+                    # a new overlap: its row in the band of its lowest stroke
+                    lowest = 0
+                    while not (old >> lowest) & 1:
+                        lowest += 1
+                    scratch.overlap_rows[lowest, (x if x_major[lowest] else y) - row_start[lowest]] = True
+                mask[p] = old | bit
+            band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
+
+
+@njit(cache=True)
+def _overlap_sums(
+    target, scratch, row_start, col_start, band_count, band_lo, band_hi, x_major, labels, union, overlap, pair_excess
+):
+    """The overlaps' pixels, strokes and alphas listed in ``scratch``; the unions' excess
+    into ``union[:, 2:]`` and each counted pair's overlap and excess. Returns how many."""
+    n = row_start.shape[0]
+    s, pair, mask, band_wind = target.s, target.pair, scratch.mask, scratch.band_wind
+    size = s.shape[0]
+    present = np.empty(n, np.int64)  # the strokes at one pixel
+    for e in range(n):
+        for k in range(n):
+            overlap[e, k] = pair_excess[e, k] = 0.0
+    # (visited in band order of each pixel's lowest stroke, row by row: the same order
+    # of sums whichever rows hold overlaps)
+    overlaps = 0
+    for e in range(n):
+        for r in range(band_count[e]):
+            if not scratch.overlap_rows[e, r]:
+                continue
+            scratch.overlap_rows[e, r] = False
+            for c in range(band_lo[e, r], band_hi[e, r]):
+                if band_wind[e, r, c] == 0.0:
+                    continue
+                x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                p = y * size + x
+                bits = mask[p]
+                if bits & (bits - 1) == 0 or bits & ((1 << e) - 1):
+                    continue  # one stroke only, or counted at a lower stroke
+                q = overlaps
+                overlaps += 1
+                scratch.overlap_pixel[q] = p
+                scratch.overlap_bits[q] = bits
+                here = scratch.overlap_alpha[q]
+                # the strokes present, in order (sums over them skip only zeros)
+                count = 0
+                for k in range(n):
+                    if (bits >> k) & 1:
+                        present[count] = k
+                        count += 1
+                    here[k] = (
+                        _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
+                        if (bits >> k) & 1
+                        else 0.0
+                    )
+                for u in range(2):
+                    stacked = 0.0
                     for a in range(count):
-                        i = present[a]
-                        if here[i] == 0.0:
-                            continue
-                        for b2 in range(a + 1, count):
-                            k = present[b2]
-                            if pair[i, k] and here[k] != 0.0:
-                                overlap[i, k] += here[i] * here[k]
-                                pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
-        for e in range(n):
-            for u in range(2):
-                if labels[u, e]:
-                    union[u, 0] += on_body[e]
-                    union[u, 1] += areas[e]
-        union_value = np.empty(2)
-        union_den = np.empty(2)
-        for u in range(2):
-            raw = union[u, 1] - union[u, 2]
-            union_den[u] = max(raw, _EPS)
-            union_value[u] = (union[u, 0] - union[u, 3]) / union_den[u]
-        terms[b, OPEN] = -union_value[0]
-        terms[b, CLOSED] = union_value[1]
-        inter = 0.0
-        for e in range(n):
-            for k in range(e + 1, n):
-                if pair[e, k]:
-                    inter += overlap[e, k] / max(areas[e] + areas[k] - pair_excess[e, k], _EPS)
-        terms[b, INTER] = inter
+                        if labels[u, present[a]]:
+                            stacked += here[present[a]]
+                    scratch.overlap_fits[q, u] = stacked <= 1.0
+                    if stacked > 1.0:
+                        union[u, 2] += stacked - 1.0
+                        union[u, 3] += (stacked - 1.0) * s[y, x]
+                for a in range(count):
+                    i = present[a]
+                    if here[i] == 0.0:
+                        continue
+                    for b2 in range(a + 1, count):
+                        k = present[b2]
+                        if pair[i, k] and here[k] != 0.0:
+                            overlap[i, k] += here[i] * here[k]
+                            pair_excess[i, k] += max(here[i] + here[k] - 1.0, 0.0)
+    return overlaps
 
-        if not (need_grad and (weights[OPEN] != 0.0 or weights[CLOSED] != 0.0 or weights[INTER] != 0.0)):
-            _clear_mask(mask, size, n, row_start, col_start, band_count, band_lo, band_hi, x_major)
-            continue
-        # d total / d alpha = per-edge constant + per-pixel parts
-        union_weight = np.array([-weights[OPEN], weights[CLOSED]])
-        union_d_den = np.empty(2)
+
+@njit(cache=True)
+def _stroke_gradient(
+    v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels,
+    row_start, col_start, band_count, band_lo, band_hi, x_major, outline, g_outline, band_prefix,
+    ts, axes, lines, g_v,
+):  # fmt: skip
+    """Adds the gradient of the weighted stroke terms (open, closed, inter) to ``g_v``,
+    clearing the pixel mask on the way."""
+    n = v.shape[0]
+    s, pair, weights = target.s, target.pair, target.weights
+    mask, band_diff, band_wind = scratch.mask, scratch.band_diff, scratch.band_wind
+    size = s.shape[0]
+    # d total / d alpha = per-edge constant + per-pixel parts
+    union_weight = np.array([-weights[OPEN], weights[CLOSED]])
+    union_d_den = np.empty(2)
+    for u in range(2):
+        raw = union[u, 1] - union[u, 2]
+        union_d_den[u] = -(union[u, 0] - union[u, 3]) / union_den[u] ** 2 if raw >= _EPS else 0.0
+    base = np.zeros(n)
+    pair_d_den = np.zeros((n, n))
+    pair_den = np.ones((n, n))
+    for e in range(n):
+        for k in range(e + 1, n):
+            if pair[e, k]:
+                raw = areas[e] + areas[k] - pair_excess[e, k]
+                pair_den[e, k] = max(raw, _EPS)
+                if raw >= _EPS:
+                    pair_d_den[e, k] = -weights[INTER] * overlap[e, k] / pair_den[e, k] ** 2
+                base[e] += pair_d_den[e, k]
+                base[k] += pair_d_den[e, k]
+    # every cell as if its stroke were alone there (the band's difference buffer,
+    # spent, holds dL/dW), clearing the pixel mask on the way ...
+    for e in range(n):
+        # d total / d alpha at a pixel no other stroke touches: lone + lone_s * S
+        lone, lone_s = base[e], 0.0
         for u in range(2):
-            raw = union[u, 1] - union[u, 2]
-            union_d_den[u] = -(union[u, 0] - union[u, 3]) / union_den[u] ** 2 if raw >= _EPS else 0.0
-        base = np.zeros(n)
-        pair_d_den = np.zeros((n, n))
-        pair_den = np.ones((n, n))
-        for e in range(n):
-            for k in range(e + 1, n):
-                if pair[e, k]:
-                    raw = areas[e] + areas[k] - pair_excess[e, k]
-                    pair_den[e, k] = max(raw, _EPS)
-                    if raw >= _EPS:
-                        pair_d_den[e, k] = -weights[INTER] * overlap[e, k] / pair_den[e, k] ** 2
-                    base[e] += pair_d_den[e, k]
-                    base[k] += pair_d_den[e, k]
-        # every cell as if its stroke were alone there (the band's difference buffer,
-        # spent, holds dL/dW), clearing the pixel mask on the way ...
-        for e in range(n):
-            # d total / d alpha at a pixel no other stroke touches: lone + lone_s * S
-            lone, lone_s = base[e], 0.0
-            for u in range(2):
-                if labels[u, e] and union_weight[u] != 0.0:
-                    lone += union_weight[u] * union_d_den[u]
-                    lone_s += union_weight[u] / union_den[u]
-            for r in range(band_count[e]):
-                for c in range(BAND_COLUMNS + 2):
-                    band_diff[e, r, c] = 0.0
-                for c in range(band_lo[e, r], band_hi[e, r]):
-                    w = band_wind[e, r, c]
-                    if w == 0.0:
-                        continue
-                    x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
-                    mask[y * size + x] = 0
-                    if abs(w) > 1.0:
-                        continue
-                    band_diff[e, r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
-        # ... then the overlaps' own values
-        for q in range(overlaps):
-            p = overlap_pixel[q]
-            y, x = p // size, p % size
-            bits = overlap_bits[q]
-            for e in range(n):
-                if not (bits >> e) & 1:
-                    continue
-                major, minor = (x, y) if x_major[e] else (y, x)
-                r = major - row_start[e]
-                c = minor - col_start[e, r]
+            if labels[u, e] and union_weight[u] != 0.0:
+                lone += union_weight[u] * union_d_den[u]
+                lone_s += union_weight[u] / union_den[u]
+        for r in range(band_count[e]):
+            for c in range(BAND_COLUMNS + 2):
+                band_diff[e, r, c] = 0.0
+            for c in range(band_lo[e, r], band_hi[e, r]):
                 w = band_wind[e, r, c]
+                if w == 0.0:
+                    continue
+                x, y = _pixel(row_start[e], col_start[e, r], x_major[e], r, c)
+                mask[y * size + x] = 0
                 if abs(w) > 1.0:
                     continue
-                alpha = abs(w)
-                g = base[e]
-                for u in range(2):
-                    if labels[u, e] and union_weight[u] != 0.0 and overlap_fits[q, u]:
-                        g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
-                for k in range(n):
-                    if k == e or not (bits >> k) & 1:
-                        continue
-                    i, j = min(e, k), max(e, k)
-                    if not pair[i, j]:
-                        continue
-                    other = overlap_alpha[q, k]
-                    g += weights[INTER] * other / pair_den[i, j]
-                    if alpha + other - 1.0 >= 0.0:
-                        g -= pair_d_den[i, j]
-                band_diff[e, r, c] = g if w > 0 else -g
+                band_diff[e, r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
+    # ... then the overlaps' own values
+    _overlap_values(
+        target, scratch, overlaps, row_start, col_start, x_major, labels, base, union_weight, union_d_den, union_den,
+        pair_den, pair_d_den,
+    )  # fmt: skip
+    for e in range(n):
+        f = (e + 1) % n
+        gpx, gpy, gqx, gqy = stroke_band_backward(
+            v[e, 0],
+            v[e, 1],
+            v[f, 0],
+            v[f, 1],
+            target.half_width,
+            low,
+            high,
+            row_start[e],
+            band_count[e],
+            target.cos_r,
+            target.sin_r,
+            outline,
+            g_outline,
+            col_start[e],
+            band_diff[e],
+            band_prefix,
+            ts,
+            axes,
+            lines,
+        )
+        g_v[e, 0] += gpx
+        g_v[e, 1] += gpy
+        g_v[f, 0] += gqx
+        g_v[f, 1] += gqy
+
+
+@njit(cache=True)
+def _overlap_values(
+    target, scratch, overlaps, row_start, col_start, x_major, labels, base, union_weight, union_d_den, union_den,
+    pair_den, pair_d_den,
+):  # fmt: skip
+    """dL/dW at each overlap's cells of every stroke there, into the bands' spent
+    difference buffers (``scratch.band_diff``), where a lone stroke's value was written."""
+    n = row_start.shape[0]
+    s, pair, weights = target.s, target.pair, target.weights
+    band_diff, band_wind = scratch.band_diff, scratch.band_wind
+    size = s.shape[0]
+    for q in range(overlaps):
+        p = scratch.overlap_pixel[q]
+        y, x = p // size, p % size
+        bits = scratch.overlap_bits[q]
         for e in range(n):
-            f = (e + 1) % n
-            gpx, gpy, gqx, gqy = stroke_band_backward(
-                v[e, 0],
-                v[e, 1],
-                v[f, 0],
-                v[f, 1],
-                half_width,
-                low,
-                high,
-                row_start[e],
-                band_count[e],
-                cos_r,
-                sin_r,
-                outline,
-                g_outline,
-                col_start[e],
-                band_diff[e],
-                band_prefix,
-                ts,
-                axes,
-                lines,
-            )
-            g_v[e, 0] += gpx
-            g_v[e, 1] += gpy
-            g_v[f, 0] += gqx
-            g_v[f, 1] += gqy
-    weighted_totals(terms, weights, totals)
+            if not (bits >> e) & 1:
+                continue
+            major, minor = (x, y) if x_major[e] else (y, x)
+            r = major - row_start[e]
+            c = minor - col_start[e, r]
+            w = band_wind[e, r, c]
+            if abs(w) > 1.0:
+                continue
+            alpha = abs(w)
+            g = base[e]
+            for u in range(2):
+                if labels[u, e] and union_weight[u] != 0.0 and scratch.overlap_fits[q, u]:
+                    g += union_weight[u] * union_d_den[u] + union_weight[u] / union_den[u] * s[y, x]
+            for k in range(n):
+                if k == e or not (bits >> k) & 1:
+                    continue
+                i, j = min(e, k), max(e, k)
+                if not pair[i, j]:
+                    continue
+                other = scratch.overlap_alpha[q, k]
+                g += weights[INTER] * other / pair_den[i, j]
+                if alpha + other - 1.0 >= 0.0:
+                    g -= pair_d_den[i, j]
+            band_diff[e, r, c] = g if w > 0 else -g
 
 
 @njit(cache=True)
