@@ -166,37 +166,6 @@ def test_good_photo_then_clicks_then_downloads(client):
     assert list(server_temp(client).iterdir()) == []
 
 
-def test_click_session_is_set_up_beside_the_automatic_subject(tmp_path):
-    """The session started while the photo is segmented is the session a click would make
-    (same masks), and the automatic subject is the command line's, bit for bit."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from jeanscv import api
-    from jeanscv.silhouette.interactive import ClickSession
-
-    photo = scene()
-    path = tmp_path / "two.png"
-    path.write_bytes(png_bytes(photo.image))
-    with ThreadPoolExecutor(1) as beside:
-        opened = engine.open_photo(path, "two.png", 10**8, beside.submit)
-        assert opened._session is not None and not isinstance(opened._session, ClickSession)  # a Future
-        with opened.lock:
-            session = opened.session()
-    assert isinstance(session, ClickSession) and opened.session() is session
-    expected, _, _, _ = api.prepare_input(path)
-    assert len(opened.auto) == len(expected)
-    for got, want in zip(opened.auto, expected):
-        assert (got.method, got.details) == (want.method, want.details)
-        np.testing.assert_array_equal(np.asarray(got.mask, np.float32), want.mask)
-        np.testing.assert_array_equal(got.canvas, want.canvas)
-    fresh = ClickSession(photo.image)
-    clicks = [([inside_point(m)], []) for m in photo.masks] + [
-        ([inside_point(photo.masks[1])], [inside_point(photo.masks[0])])
-    ]
-    for positive, negative in clicks:
-        np.testing.assert_array_equal(session.segment(positive, negative).mask, fresh.segment(positive, negative).mask)
-
-
 def test_svg_silhouette_and_png_drawing(client):
     text = b'<svg xmlns="http://www.w3.org/2000/svg" width="512" height="256" viewBox="0 0 512 256">'
     text += b'<rect x="200" y="20" width="100" height="220" fill="#000"/></svg>'
@@ -298,7 +267,7 @@ def test_full_pool_answers_503(make_client):
     client = make_client(workers=1, queue=0)
     state = client.app.app.state.jeanscv
     release = threading.Event()
-    assert state.pool.start_beside(release.wait) is not None
+    assert state.pool.submit_background(release.wait)
     try:
         answer = upload(client, "two.png", png_bytes(scene().image))
         assert answer.status_code == 503 and answer.headers["retry-after"] == "2"

@@ -182,12 +182,15 @@ def create_app(config: Config) -> Guard:
         }
 
     def open_and_render(path: Path, name: str, clicks_for) -> dict:
-        photo = engine.open_photo(path, name, config.max_pixels, state.pool.start_beside)
+        photo = engine.open_photo(path, name, config.max_pixels)
         photo_id = state.photos.put(photo, photo.nbytes)
         clicks = clicks_for(photo) if clicks_for else None
         answer = render(photo_id, photo, clicks, engine.RenderOptions())
         if clicks is not None:
             answer["saved_clicks"] = [obj.to_json() for obj in clicks.objects]
+        if photo.kind == "photo":
+            # The click session (about half a second) is made while the person looks.
+            state.pool.submit_background(_prepare_session, photo)
         return {"photo": photo_id, "name": name, "kind": photo.kind, **answer}
 
     def upload_job(upload, name: str) -> dict:
@@ -445,6 +448,14 @@ def create_app(config: Config) -> Guard:
 
 def _result_bytes(result: Result) -> int:
     return len(result.preview) + sum(len(data) for data, _ in result.downloads.values()) + 4096
+
+
+def _prepare_session(photo) -> None:
+    try:
+        with photo.lock:
+            photo.session()
+    except Exception:  # noqa: BLE001 - the first click will report it
+        pass
 
 
 def _inside(path: Path, folder: Path) -> bool:

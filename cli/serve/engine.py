@@ -6,11 +6,9 @@ photo's outputs. The HTTP layer (:mod:`.app`) never calls :mod:`jeanscv` itself.
 
 Clicks become silhouettes in :func:`silhouettes_from_clicks`: the photo keeps one
 ``ClickSession`` (the library's ``extract_silhouettes(clicks=...)`` makes a new one per
-call, half a second on a 12-MP photo), whose set-up starts as soon as the photo is
-decoded, beside the automatic segmentation, so it is ready when the first click comes;
-each object is segmented and framed as the library does it, so the page's result is the
-command line's. A folder's outputs are made by the command line's own worker, which
-reads the clicks saved beside the photo.
+call, half a second on a 12-MP photo), and each object is segmented and framed as the
+library does it, so the page's result is the command line's. A folder's outputs are made
+by the command line's own worker, which reads the clicks saved beside the photo.
 
 Coordinates sent to and from the page are pixels of the photo as displayed (x right,
 y down, package convention); the interactive preview is a copy whose long side is at
@@ -22,8 +20,6 @@ from __future__ import annotations
 import io
 import json
 import threading
-from collections.abc import Callable
-from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -148,7 +144,7 @@ class Photo:
     auto: list
     auto_error: str = ""
     original_jpeg: bytes | None = None
-    _session: object | None = None  # a ClickSession, or the Future of one being set up
+    _session: object | None = None
     lock: threading.Lock = field(default_factory=threading.Lock)
     fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
 
@@ -170,22 +166,12 @@ class Photo:
         return total
 
     def session(self):
-        """The click session: the one set up since the photo was opened (waited for),
-        else made now (about half a second on a 12-MP photo). Hold ``lock``."""
-        if isinstance(self._session, Future):
-            try:
-                self._session = self._session.result()
-            except Exception:  # noqa: BLE001 - cancelled or failed: made again here, which reports why
-                self._session = None
+        """The click session (made on first use: about half a second). Hold ``lock``."""
         if self._session is None:
-            self._session = _click_session(self.pixels)
+            from jeanscv.silhouette.interactive import ClickSession
+
+            self._session = ClickSession(self.pixels)
         return self._session
-
-
-def _click_session(pixels: np.ndarray):
-    from jeanscv.silhouette.interactive import ClickSession
-
-    return ClickSession(pixels)
 
 
 def _downscale(pixels: np.ndarray, side: int) -> np.ndarray:
@@ -211,41 +197,21 @@ def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
     return cv2.resize(picture, target, interpolation=cv2.INTER_AREA)
 
 
-def open_photo(path: Path, name: str, max_pixels: int, start: Callable[..., Future | None] | None = None) -> Photo:
+def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
     """Decode and segment a file (an upload's temporary copy, or a folder's photo).
 
-    ``start(function, *args)``, when given, runs the photo's click-session set-up on
-    another thread while the automatic subject is segmented here (a Future, or None
-    when it cannot: the first click then makes the session). Raises JeansError with the
-    command line's one-line reason for a bad file.
+    Raises JeansError with the command line's one-line reason for a bad file.
     """
-    from jeanscv.io.svg import SVG_EXTENSIONS
-
-    if path.suffix.lower() in SVG_EXTENSIONS:
-        return _silhouette_photo(name, api.prepare_input(path, max_pixels=max_pixels)[0])
-    loaded = api.load_image(path, max_pixels=max_pixels)
-    pending = start(_click_session, loaded.pixels) if start is not None else None
-    try:
-        silhouettes, kind, pixels, _ = api.prepare_input(loaded.pixels, max_pixels=max_pixels)
-    except BaseException:
-        if pending is not None:
-            pending.cancel()
-        raise
-    if kind == "silhouette":  # a drawing: nothing to click
-        if pending is not None:
-            pending.cancel()
-        return _silhouette_photo(name, silhouettes)
+    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels)
+    if kind == "silhouette":
+        first = silhouettes[0]
+        size = tuple(int(v) for v in first.framing.image_size)
+        preview = _figure_preview(api.figure(first), first)
+        return Photo(name, kind, None, None, size, preview, silhouettes)
     height, width = pixels.shape[:2]
     auto = [_compact(s) for s in silhouettes]
     preview = _downscale(pixels, PREVIEW_SIDE)
-    return Photo(name, kind, pixels, loaded, (width, height), preview, auto, _session=pending)
-
-
-def _silhouette_photo(name: str, silhouettes: list) -> Photo:
-    first = silhouettes[0]
-    size = tuple(int(v) for v in first.framing.image_size)
-    preview = _figure_preview(api.figure(first), first)
-    return Photo(name, "silhouette", None, None, size, preview, silhouettes)
+    return Photo(name, kind, pixels, loaded, (width, height), preview, auto)
 
 
 def _compact(silhouette):

@@ -8,7 +8,7 @@ import secrets
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 
@@ -84,10 +84,6 @@ class Pool:
         self.workers = workers
         self.limit = workers + queue
         self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="jeanscv-serve")
-        # Set-up work that a job starts for later requests (a photo's click session, while
-        # its jeans are made) runs on threads of its own: queued behind the job that
-        # started it, it would start only after that job, when the person may be clicking.
-        self._beside = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="jeanscv-serve-setup")
         self._pending = 0
         self._lock = threading.Lock()
 
@@ -99,15 +95,15 @@ class Pool:
         """
         return await asyncio.wrap_future(self._submit(function, *args))
 
-    def start_beside(self, function: Callable, *args) -> Future | None:
-        """Start ``function`` on a set-up thread now, beside the workers, if the queue has
-        room (it counts there like a job); None if not."""
+    def submit_background(self, function: Callable, *args) -> bool:
+        """Run ``function`` when a worker is free, if the queue has room; False if not."""
         try:
-            return self._submit(function, *args, executor=self._beside)
+            self._submit(function, *args)
         except Busy:
-            return None
+            return False
+        return True
 
-    def _submit(self, function: Callable, *args, executor: ThreadPoolExecutor | None = None) -> Future:
+    def _submit(self, function: Callable, *args):
         with self._lock:
             if self._pending >= self.limit:
                 raise Busy()
@@ -118,7 +114,7 @@ class Pool:
                 self._pending -= 1
 
         try:
-            future = (executor or self._executor).submit(function, *args)
+            future = self._executor.submit(function, *args)
         except RuntimeError:  # shutting down
             done(None)
             raise Busy() from None
@@ -127,4 +123,3 @@ class Pool:
 
     def shutdown(self) -> None:
         self._executor.shutdown(wait=True, cancel_futures=True)
-        self._beside.shutdown(wait=True, cancel_futures=True)
