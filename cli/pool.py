@@ -9,6 +9,11 @@ from __future__ import annotations
 
 import os
 
+#: Files handed to the pool per worker ahead of their turn: enough that a worker does not
+#: wait for the parent between small files on a busy machine, few enough that the first
+#: file starts at once and a big folder is not all queued up front.
+_AHEAD = 32
+
 
 def run_parallel(queue, options, overwrite: bool, workers: int) -> None:
     """Process the jobs of ``queue`` (a :class:`runs.WorkQueue`) in ``workers`` spawned
@@ -52,7 +57,7 @@ def _new_pool(workers: int):
 
 
 def _pool_round(queue, options, overwrite: bool, workers: int) -> list:
-    """Process the jobs of ``queue`` in a fresh pool, a few ahead of the workers, so the
+    """Process the jobs of ``queue`` in a fresh pool, some ahead of the workers, so the
     first file starts while later ones are still being found; returns the ``(job, wait)``
     items a dying worker left unfinished (then nothing more is taken from ``queue``)."""
     from concurrent.futures import FIRST_COMPLETED
@@ -68,7 +73,7 @@ def _pool_round(queue, options, overwrite: bool, workers: int) -> list:
     try:
         queue.progress.start(f"{workers} workers")
         while True:
-            while not left and len(running) < 2 * workers and (item := queue.next()) is not None:
+            while not left and len(running) < _AHEAD * workers and (item := queue.next()) is not None:
                 running[pool.submit(process_in_worker, item[0], options, overwrite, item[1])] = item
             if not running:
                 break
