@@ -5,17 +5,20 @@ first result appears, peak memory, and whether the summary counts are right.
 
 Makes ``count`` small silhouette PNGs (48x48, ellipses of seven sizes), runs
 ``jeanscv IN -o OUT -j JOBS --iterations N --starts 1`` and timestamps its stderr lines:
-the header (printed once discovery and the check for existing outputs are done), the first
-finished file, the summary. The memory of the whole process tree (parent and workers) is
-sampled every 0.2 s from /proc. For comparison, one input alone: its time to a result is
-what imports and the first fit cost, whatever the folder size. ``--limit K`` stops after K
+the header (printed once the folder is listed), when the first file started (its result
+time less the seconds its line gives), its result, the summary. The memory of the whole
+process tree (parent and workers) is sampled every 0.2 s from /proc. For comparison, one
+input alone (no workers) and two inputs with the same ``-j``: their time to a result is
+what start-up (imports, worker processes) and the first fit cost, whatever the folder size. ``--limit K`` stops after K
 results (a quick look); the summary check then does not apply.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -67,7 +70,11 @@ def run(arguments: list[str], limit: int | None) -> dict:
     """Run jeanscv; times of its milestones, its last lines and peak memory."""
     began = time.perf_counter()
     process = subprocess.Popen(
-        [sys.executable, "-m", "jeanscv", *arguments], stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True
+        [sys.executable, "-m", "jeanscv", *arguments],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,  # --limit stops its workers too, before the folder is removed
     )
     peak = {"total": 0, "one": 0}
     stop = threading.Event()
@@ -80,7 +87,7 @@ def run(arguments: list[str], limit: int | None) -> dict:
 
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
-    figures: dict = {"header": None, "first": None, "results": 0, "last": ""}
+    figures: dict = {"header": None, "first": None, "taken": None, "results": 0, "last": ""}
     assert process.stderr is not None
     for line in process.stderr:
         now = time.perf_counter() - began
@@ -90,8 +97,10 @@ def run(arguments: list[str], limit: int | None) -> dict:
             figures["results"] += 1
             if figures["first"] is None:
                 figures["first"] = now
+                took = re.search(r"\(([\d.]+) s\)$", line.strip())
+                figures["taken"] = now - float(took.group(1)) if took else None
             if limit and figures["results"] >= limit:
-                process.kill()
+                os.killpg(process.pid, signal.SIGKILL)
                 break
         figures["last"] = line.strip()
     process.wait()
@@ -118,12 +127,17 @@ def main() -> None:
 
         one = run([str(folder / "s00000.png"), "-o", str(Path(tmp) / "one"), *common], None)
         print(f"one input alone: first result after {one['first']:.2f} s (imports and the first fit)")
+        two = [str(folder / "s00000.png"), str(folder / "s00001.png"), "-o", str(Path(tmp) / "two")]
+        pair = run([*two, "-j", str(args.jobs), *common], None)
+        print(f"two inputs, -j {args.jobs}: first result after {pair['first']:.2f} s (and worker start-up)")
 
         figures = run([str(folder), "-o", str(Path(tmp) / "out"), "-j", str(args.jobs), *common], args.limit or None)
         print(f"folder of {args.count}, -j {args.jobs}:")
-        print(f"  batch header (discovery and the existing-output check done) after {figures['header']:.2f} s")
+        print(f"  batch header (folder listed) after {figures['header']:.2f} s")
+        print(f"  first file started after {figures['taken']:.2f} s")
         print(
-            f"  first result after {figures['first']:.2f} s ({figures['first'] - one['first']:+.2f} s against one input)"
+            f"  first result after {figures['first']:.2f} s ({figures['first'] - pair['first']:+.2f} s against "
+            f"two inputs, {figures['first'] - one['first']:+.2f} s against one)"
         )
         print(
             f"  {figures['results']} results in {figures['seconds']:.1f} s "

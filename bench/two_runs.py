@@ -2,9 +2,10 @@
 
     nice -n 10 python bench/two_runs.py [--count 200] [--jobs 1] [--iterations 20] [--repeat 2]
 
-Each input is claimed while its outputs are made (cli/runs.py), so the second run waits for
-what the first is making and skips it: together they should finish no later than one run
-alone plus a small margin (start-up), make each output once, and leave no temporary file.
+Each input is claimed while its outputs are made (cli/runs.py); a run that finds a file
+claimed puts it off to the end, so the two runs work on different files: together they
+should finish no later than one run alone plus a small margin (start-up), make each output
+once, and leave no temporary file.
 Prints the wall times (one alone, then the pair, alternating ``--repeat`` times on fresh
 output folders), how many outputs each run of the pair made, and the checks.
 """

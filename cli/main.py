@@ -325,28 +325,30 @@ def _main(
 
     extras = tuple(name for name, wanted in (("json", want_json), ("svg", want_svg), ("gif", want_gif)) if wanted)
     found = collect(list(paths), recursive, output_dir, fmt, extras)
-    if values["mask"] is not None and len(found.jobs) + len(found.problems) != 1:
+    single = found.total + len(found.problems) == 1
+    if values["mask"] is not None and not single:
         raise _usage("--mask needs exactly one input image")
-    if values["points"] and len(found.jobs) + len(found.problems) != 1:
+    if values["points"] and not single:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
     if values["background_points"] and not values["points"]:
         raise _usage("--background-point needs a --point on the object too")
-    if values["clicks"] is not None and len(found.jobs) + len(found.problems) != 1:
+    if values["clicks"] is not None and not single:
         raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
     options = JeansOptions(**values, device=device, backend=backend)
 
-    progress = Progress(len(found.jobs), quiet=quiet, verbose=verbose)
-    noun = "input" if len(found.jobs) == 1 else "inputs"
-    workers, why = _workers(jobs, len(found.jobs))
+    progress = Progress(found.total, quiet=quiet, verbose=verbose)
+    noun = "input" if found.total == 1 else "inputs"
+    workers, why = _workers(jobs, found.total)
     progress.info(
-        f"jeanscv {__version__}: {len(found.jobs)} {noun}, {workers} worker{'s' if workers > 1 else ''} "
+        f"jeanscv {__version__}: {found.total} {noun}, {workers} worker{'s' if workers > 1 else ''} "
         f"({why}), device {device} ({backend}), preset {options.preset}, {options.iterations} iterations"
     )
     if backend == "fast" and kernels_cached() is False:
         progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
         progress.info(f"(numba keeps them in {kernel_cache_dir()})")
     records = _unprocessed(found, progress)
-    pending, outcomes = _split_finished(found.jobs, options, overwrite, progress)
+    outcomes: dict = {}
+    pending = _pending(found.jobs, options, overwrite, progress, outcomes)
     return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
 
 
@@ -392,44 +394,52 @@ def _unprocessed(found, progress) -> list[dict]:
     return records
 
 
-def _split_finished(jobs, options, overwrite: bool, progress) -> tuple[list, dict]:
-    """``(pending jobs, outcomes)``: jobs whose outputs all exist (and are newer than the
-    clicks saved beside the photo) are skipped (outcomes) unless ``overwrite``."""
+def _pending(jobs, options, overwrite: bool, progress, outcomes: dict):
+    """The jobs to process, taken from discovery as they are needed. A job whose outputs
+    all exist (and are newer than the clicks saved beside the photo) is skipped unless
+    ``overwrite``, and a clash of outputs fails: both go to ``outcomes`` at once. Before the
+    first job bound for an output folder, the temporary files killed runs left there are
+    removed (a live run's are locked and kept)."""
+    from .discover import Problem
+    from .runs import remove_leftovers_in
     from .worker import Outcome, wanted_outputs
 
-    outcomes = {}
-    pending = []
-    for job in jobs:
-        if wanted_outputs(job, options, overwrite):
-            pending.append(job)
+    swept: set[Path] = set()
+    for index, job in enumerate(jobs):
+        if isinstance(job, Problem):
+            outcome = Outcome(index, job.display, "failed", error=job.reason)
+        elif wanted_outputs(job, options, overwrite):
+            for folder in {path.parent for path in job.outputs.values()} - swept:
+                remove_leftovers_in(folder)
+                swept.add(folder)
+            yield job
+            continue
         else:
             outcome = Outcome(
-                job.index,
-                job.display,
-                "skipped",
-                str(job.outputs["image"]),
-                error="output exists; --overwrite redoes it",
+                index, job.display, "skipped", str(job.outputs["image"]), error="output exists; --overwrite redoes it"
             )
-            outcomes[job.index] = outcome
-            progress.finish(outcome)
-    return pending, outcomes
+        outcomes[index] = outcome
+        progress.finish(outcome)
 
 
 def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcomes, records, report) -> int:
-    """Process ``pending`` (in ``workers`` processes when several), summarise, write the
-    ``--report``; the exit status."""
+    """Process ``pending`` (in ``workers`` processes when several jobs are pending),
+    summarise, write the ``--report``; the exit status."""
     from .pool import run_parallel
-    from .runs import remove_leftovers
+    from .runs import WorkQueue, remove_leftovers
 
-    # Temporary files of a run killed mid-write (SIGKILL, power loss): a live run's are locked and kept.
-    remove_leftovers([path for job in pending for path in job.outputs.values()] + ([report] if report else []))
+    if report is not None:
+        remove_leftovers([report])  # its temporary file, where a run was killed while writing it
     code = 0
     previous = _install_sigterm()
     try:
-        if workers > 1 and len(pending) > 1:
-            run_parallel(pending, options, overwrite, min(workers, len(pending)), progress, outcomes)
+        queue = WorkQueue(pending, progress, outcomes)
+        # Only as many workers as there are files to do: a resumed run with one left runs it here.
+        ahead = queue.look_ahead(workers)
+        if workers > 1 and ahead > 1:
+            run_parallel(queue, options, overwrite, ahead)
         else:
-            _run_serial(pending, options, overwrite, progress, outcomes)
+            _run_serial(queue, options, overwrite)
     except KeyboardInterrupt:
         code = 130
     except _Terminated:
@@ -500,15 +510,14 @@ def _restore_sigterm(previous) -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run_serial(pending, options, overwrite: bool, progress, outcomes) -> None:
+def _run_serial(queue, options, overwrite: bool) -> None:
     from .worker import process, reuse_freed_memory
 
     reuse_freed_memory()
-    for job in pending:
-        progress.start(job.display)
-        outcome = process(job, options, overwrite)
-        outcomes[job.index] = outcome
-        progress.finish(outcome)
+    while (item := queue.next()) is not None:
+        job, wait = item
+        queue.progress.start(job.display)
+        queue.finish(job, process(job, options, overwrite, wait))
 
 
 def _write_report(path: Path, records: list[dict], progress) -> bool:

@@ -9,28 +9,36 @@ from __future__ import annotations
 
 import os
 
+#: Files handed to the pool per worker ahead of their turn: enough that a worker does not
+#: wait for the parent between small files on a busy machine, few enough that the first
+#: file starts at once and a big folder is not all queued up front.
+_AHEAD = 32
 
-def run_parallel(pending, options, overwrite: bool, workers: int, progress, outcomes) -> None:
-    """Process ``pending`` in ``workers`` spawned processes, each with its share of the cores.
+
+def run_parallel(queue, options, overwrite: bool, workers: int) -> None:
+    """Process the jobs of ``queue`` (a :class:`runs.WorkQueue`) in ``workers`` spawned
+    processes, each with its share of the cores.
 
     A worker that dies (killed, out of memory, a crash in a C library) breaks the pool, and
-    every file not yet finished with it. Those run again in a fresh pool; what a second
-    broken pool leaves runs one file at a time, so that only a file that kills its worker
-    every time fails (``worker process died``), not the files queued beside it.
+    every file not yet finished with it. Those run again in a fresh pool, and the files
+    after them too; what a second broken pool leaves runs one file at a time, so that only
+    a file that kills its worker every time fails (``worker process died``), not the files
+    queued beside it.
     """
     from .runs import remove_leftovers
 
-    def sweep(jobs) -> None:  # a dead worker could not remove its temporary file; its lock went with it
-        remove_leftovers([path for job in jobs for path in job.outputs.values()])
+    def sweep(items) -> None:  # a dead worker could not remove its temporary file; its lock went with it
+        remove_leftovers([path for job, _ in items for path in job.outputs.values()])
 
-    left = _pool_round(pending, options, overwrite, workers, progress, outcomes)
+    left = _pool_round(queue, options, overwrite, workers)
     if left:
         sweep(left)
-        left = _pool_round(left, options, overwrite, workers, progress, outcomes)
+        queue.again(left)
+        left = _pool_round(queue, options, overwrite, workers)
     if left:
         sweep(left)
-        _one_at_a_time(left, options, overwrite, progress, outcomes)
-        sweep(left)
+        queue.again(left)
+        _one_at_a_time(queue, options, overwrite)
 
 
 def _new_pool(workers: int):
@@ -48,59 +56,70 @@ def _new_pool(workers: int):
     )
 
 
-def _pool_round(jobs, options, overwrite: bool, workers: int, progress, outcomes) -> list:
-    """Process ``jobs`` in a fresh pool; returns those a dying worker left unfinished."""
-    from concurrent.futures import as_completed
+def _pool_round(queue, options, overwrite: bool, workers: int) -> list:
+    """Process the jobs of ``queue`` in a fresh pool, some ahead of the workers, so the
+    first file starts while later ones are still being found; returns the ``(job, wait)``
+    items a dying worker left unfinished (then nothing more is taken from ``queue``)."""
+    from concurrent.futures import FIRST_COMPLETED
+    from concurrent.futures import wait as first_done
     from concurrent.futures.process import BrokenProcessPool
 
-    from .worker import Outcome, process_in_worker
+    from .worker import process_in_worker
 
     pool = _new_pool(workers)
     clean = False
-    left = []
+    running: dict = {}  # future -> (job, wait)
+    left: list = []
     try:
-        futures = {pool.submit(process_in_worker, job, options, overwrite): job for job in jobs}
-        progress.start(f"{workers} workers")
-        for future in as_completed(futures):
-            job = futures[future]
-            try:
-                outcome = future.result()
-            except BrokenProcessPool:
-                left.append(job)
-                continue
-            except Exception as exc:  # noqa: BLE001 - this file failed in its worker (unpicklable, say)
-                outcome = Outcome(job.index, job.display, "failed", error=f"worker process died ({type(exc).__name__})")
-            outcomes[job.index] = outcome
-            progress.finish(outcome)
+        queue.progress.start(f"{workers} workers")
+        while True:
+            while not left and len(running) < _AHEAD * workers and (item := queue.next()) is not None:
+                running[pool.submit(process_in_worker, item[0], options, overwrite, item[1])] = item
+            if not running:
+                break
+            done, _ = first_done(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                job, wait = item = running.pop(future)
+                try:
+                    outcome = future.result()
+                except BrokenProcessPool:
+                    left.append(item)
+                    continue
+                except Exception as exc:  # noqa: BLE001 - this file failed in its worker (unpicklable, say)
+                    outcome = _died(job, exc)
+                queue.finish(job, outcome)
         clean = True
     finally:
         if clean:
             pool.shutdown(wait=True)
         else:
             _stop_pool(pool)
-    return sorted(left, key=lambda job: job.index)
+    return sorted(left, key=lambda item: item[0].index)
 
 
-def _one_at_a_time(jobs, options, overwrite: bool, progress, outcomes) -> None:
-    """Process ``jobs`` one by one in a single worker: a file whose worker dies fails alone."""
+def _one_at_a_time(queue, options, overwrite: bool) -> None:
+    """Process the jobs of ``queue`` one by one in a single worker: a file whose worker dies
+    fails alone."""
     from concurrent.futures.process import BrokenProcessPool
 
-    from .worker import Outcome, process_in_worker
+    from .runs import remove_leftovers
+    from .worker import process_in_worker
 
     pool = None
     try:
-        for job in jobs:
+        while (item := queue.next()) is not None:
+            job, wait = item
             pool = pool or _new_pool(1)
             try:
-                outcome = pool.submit(process_in_worker, job, options, overwrite).result()
-            except BrokenProcessPool:
-                outcome = Outcome(job.index, job.display, "failed", error="worker process died (BrokenProcessPool)")
+                outcome = pool.submit(process_in_worker, job, options, overwrite, wait).result()
+            except BrokenProcessPool as exc:
+                outcome = _died(job, exc)
                 pool.shutdown(wait=True)
                 pool = None
+                remove_leftovers(job.outputs.values())
             except Exception as exc:  # noqa: BLE001 - as in _pool_round
-                outcome = Outcome(job.index, job.display, "failed", error=f"worker process died ({type(exc).__name__})")
-            outcomes[job.index] = outcome
-            progress.finish(outcome)
+                outcome = _died(job, exc)
+            queue.finish(job, outcome)
     except BaseException:
         if pool is not None:
             _stop_pool(pool)
@@ -109,6 +128,13 @@ def _one_at_a_time(jobs, options, overwrite: bool, progress, outcomes) -> None:
     finally:
         if pool is not None:
             pool.shutdown(wait=True)
+
+
+def _died(job, exc: BaseException):
+    """The outcome of a file whose worker died under it (or could not take it)."""
+    from .worker import Outcome
+
+    return Outcome(job.index, job.display, "failed", error=f"worker process died ({type(exc).__name__})")
 
 
 def _stop_pool(pool) -> None:

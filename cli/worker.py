@@ -21,7 +21,8 @@ from .runs import claim, stop_with_parent
 
 @dataclass
 class Outcome:
-    """What happened to one input: ``status`` is ``ok``, ``failed`` or ``skipped``."""
+    """What happened to one input: ``status`` is ``ok``, ``failed`` or ``skipped``; or
+    ``busy`` (another run holds it: put off, not reported, see :class:`runs.WorkQueue`)."""
 
     index: int
     input: str
@@ -180,8 +181,11 @@ def _object_info(obj) -> dict:
 _BUSY = False
 
 
-def process(job: Job, options: JeansOptions, overwrite: bool = False) -> Outcome:
+def process(job: Job, options: JeansOptions, overwrite: bool = False, wait: bool = True) -> Outcome:
     """Process one job; never raises for a bad input (the outcome says ``failed``).
+
+    Another jeanscv run may be making this file's outputs: with ``wait``, wait for it and
+    then skip what it made; without, leave the file to it for now (``busy``).
 
     KeyboardInterrupt and :class:`Terminated` propagate, after the atomic writers
     have removed their temporary files.
@@ -191,10 +195,10 @@ def process(job: Job, options: JeansOptions, overwrite: bool = False) -> Outcome
     outcome = Outcome(job.index, job.display, "ok", output=str(job.outputs["image"]))
     _BUSY = True
     try:
-        # Another jeanscv run on the same folder may be making this file's outputs: wait
-        # for it, then skip what it made (the job was pending when this run began).
-        with claim(job.path):
-            if wanted_outputs(job, options, overwrite):
+        with claim(job.path, wait) as ours:
+            if not ours:
+                outcome.status, outcome.error = "busy", "another jeanscv run is making it"
+            elif wanted_outputs(job, options, overwrite):
                 _run(job, options, overwrite, outcome)
             else:
                 outcome.status, outcome.error = "skipped", "made by another jeanscv run meanwhile"
@@ -260,9 +264,9 @@ def init_worker(threads: int) -> None:
         sys.modules["torch"].set_num_threads(max(1, threads))
 
 
-def process_in_worker(job: Job, options: JeansOptions, overwrite: bool = False) -> Outcome:
+def process_in_worker(job: Job, options: JeansOptions, overwrite: bool = False, wait: bool = True) -> Outcome:
     """:func:`process` for a worker process: a SIGTERM mid-file reports nothing and exits."""
     try:
-        return process(job, options, overwrite)
+        return process(job, options, overwrite, wait)
     except Terminated:
         os._exit(128 + signal.SIGTERM)

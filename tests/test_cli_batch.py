@@ -131,6 +131,27 @@ def test_folder_without_recursion_globs_and_name_clashes(tmp_path, run_cli, monk
     assert _files(tmp_path / "out") == ["a.jeans.png", "a.svg.jeans.png", "b.jeans.png"]
 
 
+def test_a_clash_found_while_jobs_are_made_is_counted_in_order(tmp_path, run_cli, monkeypatch):
+    """Output names are decided as the jobs are made, in order: x.svg would take
+    x.svg.jeans.png, which x.svg.png (named first) already has. It fails in its place in
+    the progress count, and the summary adds up."""
+    monkeypatch.chdir(tmp_path)
+    write_silhouette_png(tmp_path / "x.svg.png")
+    write_silhouette_png(tmp_path / "x.png")
+    write_silhouette_svg(tmp_path / "x.svg")
+    result = run_cli("x.svg.png", "x.png", "x.svg", *FAST, "-j", "1")
+    assert result.exit_code == 1
+    lines = result.stderr.splitlines()
+    assert ": 3 inputs, 1 worker (-j)" in lines[0]
+    assert [line.split(" (")[0] for line in lines[1:-1]] == [
+        "[1/3] x.svg.png -> x.svg.jeans.png",
+        "[2/3] x.png -> x.jeans.png",
+        "jeanscv: x.svg: its output x.svg.jeans.png would also be the output of x.svg.png",
+    ]
+    assert lines[-1].startswith("2 ok, 1 failed, 0 skipped in ")
+    assert _files(tmp_path) == ["x.jeans.png", "x.png", "x.svg", "x.svg.jeans.png", "x.svg.png"]
+
+
 @pytest.mark.usefixtures("compiled_kernels")
 def test_python_m_jeanscv_with_worker_processes(tmp_path):
     _tree(tmp_path / "in", corrupt=True)

@@ -177,3 +177,90 @@ def test_two_runs_at_once_share_the_work(tmp_path):
         made += int(summary.group(1))
     assert made == COUNT  # no input made twice
     assert temporaries(tmp_path) == []
+
+
+@pytest.mark.parametrize("jobs, other_makes_it", [("1", True), ("2", False)])
+def test_a_file_another_run_holds_is_put_off_not_waited_for(tmp_path, jobs, other_makes_it):
+    """The first file is held by another run (its claim taken here by the test): the run
+    makes the other files meanwhile instead of waiting in line, then comes back to it and
+    waits. What the other run made is skipped; what it did not make, this run makes."""
+    fcntl = pytest.importorskip("fcntl")
+    folder, out, names = make_folder(tmp_path)
+    held = os.open(folder / "s0.png", os.O_RDONLY)
+    try:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        run = jeanscv(folder, "-o", out, "-j", jobs, *SLOW[:-1])
+        assert wait_until(lambda: set(names[1:]) <= set(finished_outputs(out)) if out.is_dir() else False)
+        assert run.poll() is None  # back at s0, waiting for the other run
+        assert finished_outputs(out) == names[1:]
+        if other_makes_it:
+            (out / names[0]).write_bytes((out / names[1]).read_bytes())
+    finally:
+        os.close(held)
+    _, stderr = run.communicate(timeout=600)
+    assert run.returncode == 0, stderr
+    assert_valid_outputs(out, names)
+    if other_makes_it:
+        assert f"[5/5] {folder / 's0.png'}: skipped (made by another jeanscv run meanwhile)" in stderr.splitlines()
+        assert re.search(r"^4 ok, 0 failed, 1 skipped in ", stderr, re.MULTILINE), stderr
+    else:
+        assert re.search(r"^5 ok, 0 failed, 0 skipped in ", stderr, re.MULTILINE), stderr
+    assert temporaries(tmp_path) == []
+
+
+def test_work_queue_puts_busy_files_off_to_the_end():
+    """The order a run takes its files in: as found, then those another run held (now
+    waiting for it); files a dead worker left come first again; nothing is counted twice."""
+    from types import SimpleNamespace
+
+    from jeanscv_cli.runs import WorkQueue
+
+    class Progress:
+        def __init__(self):
+            self.finished = []
+
+        def finish(self, outcome):
+            self.finished.append(outcome.input)
+
+    def job(name: str, index: int):
+        return SimpleNamespace(index=index, display=name)
+
+    made = []
+    jobs = (job(name, i) for i, name in enumerate("abcd"))  # a generator: taken as needed
+    outcomes: dict = {}
+    queue = WorkQueue(jobs, Progress(), outcomes)
+    assert queue.look_ahead(2) == 2
+    order = []
+    while (item := queue.next()) is not None:
+        current, wait = item
+        order.append((current.display, wait))
+        status = "busy" if current.display in "bc" and not wait else "ok"
+        if current.display == "d" and not made:  # its worker died: handed back once
+            made.append("d")
+            queue.again([(current, wait)])
+            continue
+        queue.finish(current, SimpleNamespace(status=status, input=current.display))
+    assert order == [("a", False), ("b", False), ("c", False), ("d", False), ("d", False), ("b", True), ("c", True)]
+    assert queue.progress.finished == ["a", "d", "b", "c"]
+    assert sorted(outcomes) == [0, 1, 2, 3]
+
+
+def test_a_run_removes_temporaries_killed_runs_left_in_its_output_folder(tmp_path):
+    """Temporary files of any jeanscv output in a folder the run writes to are removed,
+    also those of outputs that are already finished (a killed --overwrite run left them);
+    another program's temporary file is left alone."""
+    folder, out, names = make_folder(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "jeanscv", folder, "-o", out, *SLOW], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    before = assert_valid_outputs(out, names)
+    (out / names[1]).unlink()
+    for name in (names[0], names[1], "notes.txt"):
+        (out / f".{name}.0badf00d.tmp").write_bytes(b"half of it")
+    again = subprocess.run([sys.executable, "-m", "jeanscv", folder, "-o", out, *SLOW], capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert temporaries(out) == [".notes.txt.0badf00d.tmp"]
+    (out / ".notes.txt.0badf00d.tmp").unlink()
+    after = assert_valid_outputs(out, names)
+    assert {name: after[name] for name in names if name != names[1]} == {
+        name: before[name] for name in names if name != names[1]
+    }

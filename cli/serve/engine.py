@@ -402,7 +402,7 @@ def folder_jobs(folder: Path) -> list[Job]:
     """The folder's photos as the command line finds them (``jeanscv FOLDER``), in order."""
     from ..discover import collect
 
-    return collect([str(folder)]).jobs
+    return [job for job in collect([str(folder)]).jobs if isinstance(job, Job)]
 
 
 def saved_clicks(job: Job) -> Clicks | None:

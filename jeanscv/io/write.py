@@ -12,6 +12,7 @@ import os
 import re
 import secrets
 import stat
+from collections.abc import Container
 from pathlib import Path
 
 import numpy as np
@@ -114,7 +115,7 @@ def _still_named(tmp: Path, fd: int) -> bool:
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[0-9a-f]{8}\.tmp")
 
 
-def remove_stale_temporaries(folder: str | Path, names: set[str] | None = None) -> list[Path]:
+def remove_stale_temporaries(folder: str | Path, names: Container[str] | None = None) -> list[Path]:
     """Remove the temporary files that writers killed mid-write left in ``folder``.
 
     A killed process (SIGKILL, power loss) cannot remove its temporary file. Only
