@@ -366,33 +366,65 @@ class _Details:
         return dark
 
 
-def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rng: np.random.Generator) -> _Details:
-    """Seams, stitching, waistband, belt loops, pockets, fly, whiskers and hems.
+class _Tailor:
+    """The ink layers the construction draws on, with its seam and stitch sizes.
 
     Sizes are fractions of the garment unit, with pixel floors so a thumbnail still
     shows a stitch.
     """
-    v, unit, n = layout.vertices, layout.unit, garment.num_vertices
-    seam_w = max(1.2, 0.016 * unit)
-    thread_w = max(0.9, 0.0055 * unit)
-    stitch = max(2.2, 0.014 * unit)
-    gap = 0.45 * stitch
-    grooves, wear, thread, flip = (_Layer(shape) for _ in range(4))
 
-    def stitches(polyline: np.ndarray, offsets: tuple[float, ...], inward: bool = True) -> None:
+    def __init__(self, layout: _Layout, shape: tuple[int, int]) -> None:
+        self.layout, self.shape = layout, shape
+        unit = layout.unit
+        self.seam_w = max(1.2, 0.016 * unit)
+        self.thread_w = max(0.9, 0.0055 * unit)
+        self.stitch = max(2.2, 0.014 * unit)
+        self.gap = 0.45 * self.stitch
+        self.grooves, self.wear, self.thread, self.flip = (_Layer(shape) for _ in range(4))
+
+    def dashes(self, line: np.ndarray) -> None:
+        """One row of stitches along the polyline ``line`` ``(k, 2)``."""
+        self.thread.lines(_dashes(line, self.stitch, self.gap, self.shape), self.thread_w)
+
+    def stitches(self, polyline: np.ndarray, offsets: tuple[float, ...], inward: bool = True) -> None:
+        """A row of stitches ``d`` px beside ``polyline`` for each ``d`` of ``offsets``:
+        inside the garment, or to the polyline's left (``(-dy, dx)`` side) when not
+        ``inward``."""
         for d in offsets:
-            line = layout.inward(polyline, d) if inward else _offset(polyline, d)
-            thread.lines(_dashes(line, stitch, gap, shape), thread_w)
+            self.dashes(self.layout.inward(polyline, d) if inward else _offset(polyline, d))
 
-    # Closed edges: dark seam groove with double (flat-felled) topstitching beside it,
-    # and the felled allowance a slightly raised, lighter ridge between the stitches.
-    chains = [v[c] for c in _closed_chains(garment)]
-    grooves.lines(chains, 2 * seam_w, 0.55)
+
+@dataclass(frozen=True)
+class _Waistband:
+    """Where the waistband lies: from the waist vertices ``a`` and ``b`` down to
+    ``a_low`` and ``b_low`` on the side seams, which run towards ``side_a`` and
+    ``side_b``; ``button`` is the brass button's metal entry."""
+
+    a: int
+    b: int
+    side_a: np.ndarray
+    side_b: np.ndarray
+    a_low: np.ndarray
+    b_low: np.ndarray
+    centre_low: np.ndarray  # the middle of the band's lower edge
+    button: tuple
+
+
+def _closed_seams(tailor: _Tailor, garment: Garment) -> None:
+    """Closed edges: dark seam groove with double (flat-felled) topstitching beside it,
+    and the felled allowance a slightly raised, lighter ridge between the stitches."""
+    layout, seam_w = tailor.layout, tailor.seam_w
+    chains = [layout.vertices[c] for c in _closed_chains(garment)]
+    tailor.grooves.lines(chains, 2 * seam_w, 0.55)
     for chain in chains:
-        stitches(chain, (1.3 * seam_w, 2.5 * seam_w))
-    wear.lines([layout.inward(c, 1.9 * seam_w) for c in chains], 1.1 * seam_w, 0.18)
+        tailor.stitches(chain, (1.3 * seam_w, 2.5 * seam_w))
+    tailor.wear.lines([layout.inward(c, 1.9 * seam_w) for c in chains], 1.1 * seam_w, 0.18)
 
-    # Waistband: a darker band with cross-grain weave, stitched along both edges.
+
+def _waistband(tailor: _Tailor, garment: Garment) -> _Waistband:
+    """Waistband: a darker band with cross-grain weave, stitched along both edges."""
+    layout = tailor.layout
+    v, unit, n = layout.vertices, layout.unit, garment.num_vertices
     a, b = garment.waist
     side_a = v[(a - 1) % n] if (a - 1) % n != b else v[(a + 1) % n]
     side_b = v[(b + 1) % n] if (b + 1) % n != a else v[(b - 1) % n]
@@ -400,97 +432,149 @@ def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rn
     a_low = v[a] + _towards(v[a], side_a) * band
     b_low = v[b] + _towards(v[b], side_b) * band
     top, bottom = np.array([v[a], v[b]]), np.array([a_low, b_low])
-    flip.polygons([np.array([v[a], v[b], b_low, a_low])])
-    grooves.lines([bottom], seam_w, 0.5)
+    tailor.flip.polygons([np.array([v[a], v[b], b_low, a_low])])
+    tailor.grooves.lines([bottom], tailor.seam_w, 0.5)
     # _offset moves left of the line; pick the sign that moves down into the band.
     down_is_left = np.sign(layout.down @ (_offset(top, 1.0)[0] - top[0])) or 1.0
-    stitches(top, (down_is_left * 0.25 * band,), inward=False)
-    stitches(bottom, (-down_is_left * 0.25 * band,), inward=False)
+    tailor.stitches(top, (down_is_left * 0.25 * band,), inward=False)
+    tailor.stitches(bottom, (-down_is_left * 0.25 * band,), inward=False)
     centre_low = 0.5 * (a_low + b_low)
     # The button sits mid-band at the centre front.
-    metal = [(0.25 * (v[a] + v[b]) + 0.5 * centre_low, 0.026 * unit, _BRASS)]
+    button = (0.25 * (v[a] + v[b]) + 0.5 * centre_low, 0.026 * unit, _BRASS)
+    return _Waistband(a, b, side_a, side_b, a_low, b_low, centre_low, button)
 
-    # Hems on the open leg edges: folded band, worn light edge, one stitch row.
-    hem = 0.05 * unit
+
+def _hems(tailor: _Tailor, garment: Garment) -> None:
+    """Hems on the open leg edges: folded band, worn light edge, one stitch row."""
+    layout, seam_w = tailor.layout, tailor.seam_w
+    v, n = layout.vertices, garment.num_vertices
+    a, b = garment.waist
+    hem = 0.05 * layout.unit
     for edge in garment.open_edges:
         p, q = v[edge], v[(edge + 1) % n]
         if {edge, (edge + 1) % n} == {a, b}:
             continue
-        extend = _towards(p, q) * 0.1 * unit
+        extend = _towards(p, q) * 0.1 * layout.unit
         line = np.array([p - extend, q + extend])
         fold = layout.inward(line, hem)
-        grooves.polygons([np.vstack([line, fold[::-1]])], 0.15)
-        grooves.lines([fold], seam_w, 0.5)
-        wear.lines([line], 1.5 * seam_w, 0.6)
-        stitches(line, (0.6 * hem,))
+        tailor.grooves.polygons([np.vstack([line, fold[::-1]])], 0.15)
+        tailor.grooves.lines([fold], seam_w, 0.5)
+        tailor.wear.lines([line], 1.5 * seam_w, 0.6)
+        tailor.stitches(line, (0.6 * hem,))
 
-    # Trouser details (pockets, fly, whiskers) only for trousers; a plain garment gets
-    # no belt loops either.
-    trousers = garment.style in ("jeans", "shorts")
-    # Front pockets: scooped openings from the waistband to the side seams, stitched on
-    # the front-panel side, a rivet at the outer end of each.
-    for corner, low, other, side in ((v[a], a_low, b_low, side_a), (v[b], b_low, a_low, side_b)) if trousers else ():
+
+def _front_pockets(tailor: _Tailor, band: _Waistband) -> list:
+    """Front pockets: scooped openings from the waistband to the side seams, stitched on
+    the front-panel side; returns the rivet at the outer end of each (metal entries)."""
+    layout, seam_w = tailor.layout, tailor.seam_w
+    v, unit = layout.vertices, layout.unit
+    rivets = []
+    for corner, low, other, side in (
+        (v[band.a], band.a_low, band.b_low, band.side_a),
+        (v[band.b], band.b_low, band.a_low, band.side_b),
+    ):
         start = low + (other - low) * 0.2
         end = corner + _towards(corner, side) * 0.27 * unit
         control = corner + 0.95 * (start - corner) + 0.9 * (end - corner)
         curve = _bezier(start, control, end)
-        grooves.lines([curve], 0.8 * seam_w, 0.6)
+        tailor.grooves.lines([curve], 0.8 * seam_w, 0.6)
         mid = len(curve) // 2
         towards_corner = np.dot(_offset(curve, 1.0)[mid] - curve[mid], corner - curve[mid]) > 0
         away = -1.0 if towards_corner else 1.0
-        stitches(curve, (away * 1.2 * seam_w, away * 2.3 * seam_w), inward=False)
-        metal.append((end + (start - end) * 0.04, 0.011 * unit, _COPPER))
+        tailor.stitches(curve, (away * 1.2 * seam_w, away * 2.3 * seam_w), inward=False)
+        rivets.append((end + (start - end) * 0.04, 0.011 * unit, _COPPER))
+    return rivets
 
-    # Fly: centre seam down to the crotch and the J-shaped double stitch beside it, then
-    # whiskers, pale creases fanning out from the crotch across the thighs.
-    to_crotch = _ray_hit(layout, centre_low, layout.down) if trousers else np.inf
-    if np.isfinite(to_crotch) and to_crotch > 0.05 * unit:
-        crotch = centre_low + layout.down * to_crotch
-        grooves.lines([np.array([centre_low, crotch])], 0.7 * seam_w, 0.55)
-        length = min(0.85 * to_crotch, 0.45 * unit)
-        tip = centre_low + layout.down * (length + 0.02 * unit)
-        for width in (0.075 * unit, 0.075 * unit - 1.1 * seam_w):
-            side = centre_low + layout.across * width
-            curve = _bezier(side + layout.down * 0.7 * length, side + layout.down * length, tip)
-            thread.lines(_dashes(np.vstack([side, curve]), stitch, gap, shape), thread_w)
-        whiskers = []
-        t = np.linspace(0, 1, 16)[:, None]
-        for sign in (-1.0, 1.0):
-            for k in range(6):
-                start = crotch + unit * (layout.across * sign * (0.09 + 0.015 * k) + layout.down * (0.035 * k - 0.07))
-                angle = np.deg2rad(rng.uniform(8, 22) + 4 * k)
-                direction = layout.across * sign * np.cos(angle) - layout.down * np.sin(angle)
-                spine = start + direction * rng.uniform(0.17, 0.27) * unit * t
-                normal = np.array([-direction[1], direction[0]])
-                half = (0.004 + 0.006 * rng.random()) * unit * np.sin(np.pi * t) ** 0.7
-                whiskers.append(np.concatenate([spine + normal * half, (spine - normal * half)[::-1]]))
-        wear.polygons(whiskers, 0.4)
 
-    # Belt loops: raised strips over the waistband with a bar tack at each end, a
-    # drop shadow on the side away from the light (down-right) and a sharp outline.
+def _fly(tailor: _Tailor, band: _Waistband) -> np.ndarray | None:
+    """Fly: centre seam down to the crotch and the J-shaped double stitch beside it.
+    Returns the crotch point, or None where the garment is too short for a fly."""
+    layout, seam_w = tailor.layout, tailor.seam_w
+    unit, centre_low = layout.unit, band.centre_low
+    to_crotch = _ray_hit(layout, centre_low, layout.down)
+    if not (np.isfinite(to_crotch) and to_crotch > 0.05 * unit):
+        return None
+    crotch = centre_low + layout.down * to_crotch
+    tailor.grooves.lines([np.array([centre_low, crotch])], 0.7 * seam_w, 0.55)
+    length = min(0.85 * to_crotch, 0.45 * unit)
+    tip = centre_low + layout.down * (length + 0.02 * unit)
+    for width in (0.075 * unit, 0.075 * unit - 1.1 * seam_w):
+        side = centre_low + layout.across * width
+        curve = _bezier(side + layout.down * 0.7 * length, side + layout.down * length, tip)
+        tailor.dashes(np.vstack([side, curve]))
+    return crotch
+
+
+def _whiskers(tailor: _Tailor, crotch: np.ndarray, rng: np.random.Generator) -> None:
+    """Whiskers: pale creases fanning out from the crotch across the thighs."""
+    layout = tailor.layout
+    unit = layout.unit
+    whiskers = []
+    t = np.linspace(0, 1, 16)[:, None]
+    for sign in (-1.0, 1.0):
+        for k in range(6):
+            start = crotch + unit * (layout.across * sign * (0.09 + 0.015 * k) + layout.down * (0.035 * k - 0.07))
+            angle = np.deg2rad(rng.uniform(8, 22) + 4 * k)
+            direction = layout.across * sign * np.cos(angle) - layout.down * np.sin(angle)
+            spine = start + direction * rng.uniform(0.17, 0.27) * unit * t
+            normal = np.array([-direction[1], direction[0]])
+            half = (0.004 + 0.006 * rng.random()) * unit * np.sin(np.pi * t) ** 0.7
+            whiskers.append(np.concatenate([spine + normal * half, (spine - normal * half)[::-1]]))
+    tailor.wear.polygons(whiskers, 0.4)
+
+
+def _belt_loops(tailor: _Tailor, garment: Garment, band: _Waistband) -> tuple[_Layer, _Layer]:
+    """Belt loops: raised strips over the waistband with a bar tack at each end, a
+    drop shadow on the side away from the light (down-right) and a sharp outline.
+    Returns the ``(raised, outline)`` layers (empty for a plain garment)."""
+    layout, seam_w, shape = tailor.layout, tailor.seam_w, tailor.shape
+    v, unit = layout.vertices, layout.unit
+    a, b = band.a, band.b
     loop_w, loop_over = 0.04 * unit, 0.03 * unit
     loops = []
     for f in (0.1, 0.3, 0.7, 0.9) if garment.style != "plain" else ():
         top_pt = v[a] + (v[b] - v[a]) * f
-        low_pt = a_low + (b_low - a_low) * f + layout.down * loop_over
+        low_pt = band.a_low + (band.b_low - band.a_low) * f + layout.down * loop_over
         half = layout.across * 0.5 * loop_w
         loops.append(np.array([top_pt - half, top_pt + half, low_pt + half, low_pt - half]))
         tacks = [top_pt + layout.down * 0.014 * unit, low_pt - layout.down * 0.014 * unit]
-        thread.lines([np.array([p - half * 0.7, p + half * 0.7]) for p in tacks], 2.2 * thread_w)
-    grooves.polygons([q + (layout.across + layout.down) * 0.5 * seam_w for q in loops], 0.6)
+        tailor.thread.lines([np.array([p - half * 0.7, p + half * 0.7]) for p in tacks], 2.2 * tailor.thread_w)
+    tailor.grooves.polygons([q + (layout.across + layout.down) * 0.5 * seam_w for q in loops], 0.6)
     raised, outline = _Layer(shape), _Layer(shape)
     raised.polygons(loops)
     outline.lines([np.vstack([q, q[:1]]) for q in loops], 0.6 * seam_w, 0.45)
-    flip.polygons(loops)
-    wear.polygons(loops, 0.2)
+    tailor.flip.polygons(loops)
+    tailor.wear.polygons(loops, 0.2)
+    return raised, outline
 
+
+def _denim_details(layout: _Layout, shape: tuple[int, int], garment: Garment, rng: np.random.Generator) -> _Details:
+    """Seams, stitching, waistband, belt loops, pockets, fly, whiskers and hems.
+
+    Drawn in a fixed order, since where strokes on one layer overlap the later one
+    wins; ``rng`` is drawn from only by the whiskers.
+    """
+    tailor = _Tailor(layout, shape)
+    _closed_seams(tailor, garment)
+    band = _waistband(tailor, garment)
+    metal = [band.button]
+    _hems(tailor, garment)
+    # Trouser details (pockets, fly, whiskers) only for trousers; a plain garment gets
+    # no belt loops either.
+    if garment.style in ("jeans", "shorts"):
+        metal += _front_pockets(tailor, band)
+        crotch = _fly(tailor, band)
+        if crotch is not None:
+            _whiskers(tailor, crotch, rng)
+    raised, outline = _belt_loops(tailor, garment, band)
+    seam_w = tailor.seam_w
     return _Details(
-        wear=wear.alpha(0.4 * seam_w),
-        grooves=grooves.alpha(0.5 * seam_w),
+        wear=tailor.wear.alpha(0.4 * seam_w),
+        grooves=tailor.grooves.alpha(0.5 * seam_w),
         outline=outline.alpha(0.25 * seam_w),
         raised=raised,
-        flip=flip,
-        thread=thread,
+        flip=tailor.flip,
+        thread=tailor.thread,
         metal=metal,
     )
 
