@@ -645,6 +645,191 @@ def row_windows(needed: np.ndarray, top: int = 0) -> list[tuple[slice, slice]]:
     return boxes
 
 
+@dataclass(frozen=True)
+class _Cloth:
+    """What the per-pixel denim of one patch reads, made once before the windows."""
+
+    details: _Details
+    depth: np.ndarray  # (h, w) float32 distance (px) from the outline, inside the garment
+    blotches: _FrameNoise  # blotchy fading
+    slubs: _FrameNoise  # slubby warp yarns: streaks along the legs
+    wobble: _FrameNoise  # the twill's yarn wobble
+    shading: Callable[[slice, slice], np.ndarray]  # see _photo_shading
+    seed: int
+    to_wear: np.float32  # 1 / (0.16 unit): depth to the panel's wear
+    to_occlusion: np.float32  # 1 / (0.07 unit): depth to the outline's occlusion
+    scale: np.float32  # the twill's phase per pixel
+    across: np.ndarray  # (2,) float32, layout.across
+    down: np.ndarray  # (2,) float32, layout.down
+    cx: np.ndarray  # (1, w) float32 x of the pixel centres
+
+
+def _cloth(
+    image: np.ndarray,
+    box: tuple[int, int, int, int],
+    vertices: np.ndarray,
+    coverage: np.ndarray,
+    weight: np.ndarray,
+    garment: Garment,
+    seed: int,
+) -> _Cloth:
+    """The construction details, noise fields and shading of the patch (the arguments
+    are those of :func:`denim_windows`); the seed's generator draws the details first,
+    then the noise grids, in this fixed order."""
+    layout = _layout(vertices, garment)
+    shape = coverage.shape
+    unit = layout.unit
+    rng = np.random.default_rng(seed)
+    details = _denim_details(layout, shape, garment, rng)
+
+    # Wear: lighter down the middle of each panel (it rubs), blotchy fading, and
+    # slubby warp yarns (streaks along the legs); a soft occlusion towards the outline
+    # makes the legs look round.
+    depth = cv2.distanceTransform(np.greater(coverage, 0.5).view(np.uint8), cv2.DIST_L2, 3)
+    period = max(3.0, unit / 170.0)
+    blotches = _FrameNoise(rng, layout, shape, 0.12 * unit, 0.2 * unit)
+    slubs = _FrameNoise(rng, layout, shape, 1.3 * period, 25 * period)
+    wobble = _FrameNoise(rng, layout, shape, 4 * period, 4 * period)
+    shading = _photo_shading(image, box, weight, unit)
+    to_wear, to_occlusion = np.float32(1.0 / (0.16 * unit)), np.float32(1.0 / (0.07 * unit))
+    return _Cloth(
+        details=details,
+        depth=depth,
+        blotches=blotches,
+        slubs=slubs,
+        wobble=wobble,
+        shading=shading,
+        seed=seed,
+        to_wear=to_wear,
+        to_occlusion=to_occlusion,
+        scale=np.float32(2 * np.pi / period),
+        across=layout.across.astype(np.float32),
+        down=layout.down.astype(np.float32),
+        cx=(np.arange(shape[1], dtype=np.float32) + 0.5)[None, :],
+    )
+
+
+@dataclass(frozen=True)
+class _StripNoise:
+    """The noise of one strip of ``_TEXTURE_ROWS`` rows starting at patch row ``top``,
+    as ``(rows, columns) float32`` arrays from the strip's first row and column 0."""
+
+    top: int
+    wobble: np.ndarray
+    blotches: np.ndarray
+    slubs: np.ndarray
+    grain: np.ndarray  # blurred white noise: the yarn's grain
+
+    def local(self, rows: slice) -> slice:
+        """Patch rows ``rows`` as rows of the strip's arrays."""
+        return slice(rows.start - self.top, rows.stop - self.top)
+
+
+def _strip_noise(cloth: _Cloth, strip: int, top: int, boxes: list[tuple[slice, slice]]) -> _StripNoise:
+    """The noise of strip number ``strip`` (from row ``top``), drawn only as far right
+    and down as its windows ``boxes`` need (the grain's blur reaches 2 rows further)."""
+    h, w = cloth.depth.shape
+    bottom = max(rows.stop for rows, _ in boxes)
+    right = max(cols.stop for _, cols in boxes)
+    wobble = cloth.wobble.rows(top, bottom, right)
+    blotches = cloth.blotches.rows(top, bottom, right)
+    slubs = cloth.slubs.rows(top, bottom, right)
+    strip_rng = np.random.default_rng([cloth.seed, strip])
+    grain_rows = min(bottom + 2, top + _TEXTURE_ROWS, h) - top
+    grain = _blur(strip_rng.standard_normal((grain_rows, w), dtype=np.float32), 0.5)
+    return _StripNoise(top, wobble, blotches, slubs, grain)
+
+
+# The per-window helpers below run their arithmetic in place but keep the float32
+# operations and their order as written in their docstrings, so the bytes do not
+# depend on the windows; a layer with no ink in a window is skipped (x * 1, x + 0).
+
+
+def _twill(cloth: _Cloth, noise: _StripNoise, rows: slice, cols: slice) -> np.ndarray:
+    """2/1 twill over a window: ridges at 45 degrees to the garment axes, rising to the
+    right as on right-hand twill (mirrored where ``flip``: on the cross-grain
+    waistband), wobbling like real yarn; sharpened from a sine into flat-topped ridges
+    in [0, 1]:
+    smoothstep(0.5 + 0.9 * sin((along + downs * (1 - 2 flip)) * scale + 0.35 wobble)).
+    """
+    cy = (np.arange(rows.start, rows.stop, dtype=np.float32) + 0.5)[:, None]
+    x = cloth.cx[:, cols]
+    across, down = cloth.across, cloth.down
+    twill = x * down[0] + cy * down[1]
+    flip = cloth.details.flip.window(rows, cols)
+    if flip is not None:
+        twill *= 1.0 - 2.0 * flip
+    twill += x * across[0] + cy * across[1]
+    twill *= cloth.scale
+    twill += np.float32(0.35) * noise.wobble[noise.local(rows), cols]
+    np.sin(twill, out=twill)
+    twill *= 0.9
+    twill += 0.5
+    return _smoothstep(twill)
+
+
+def _fade(cloth: _Cloth, noise: _StripNoise, rows: slice, cols: slice) -> np.ndarray:
+    """The indigo's fading over a window, 0 (deep) .. 1 (worn):
+    clip(wear + (0.15 + 0.32 * smoothstep(depth / (0.16 unit))) + 0.12 blotches
+    + 0.06 slubs, 0, 1)."""
+    local = noise.local(rows)
+    fade = 0.15 + 0.32 * _smoothstep(cloth.depth[rows, cols] * cloth.to_wear)
+    wear = cloth.details.wear.window(rows, cols)
+    if wear is not None:
+        fade += wear
+    fade += 0.12 * noise.blotches[local, cols]
+    fade += 0.06 * noise.slubs[local, cols]
+    np.clip(fade, 0.0, 1.0, out=fade)
+    return fade
+
+
+def _light(cloth: _Cloth, rows: slice, cols: slice) -> np.ndarray:
+    """The cloth's lighting over a window: construction shadows, occlusion, the photo's
+    folds, dark * (0.7 + 0.3 * smoothstep(depth / (0.07 unit))) * shading."""
+    light = cloth.details.dark(rows, cols)
+    light *= 0.7 + 0.3 * _smoothstep(cloth.depth[rows, cols] * cloth.to_occlusion)
+    light *= cloth.shading(rows, cols)
+    return light
+
+
+def _window_colour(cloth: _Cloth, noise: _StripNoise, rows: slice, cols: slice) -> np.ndarray:
+    """The denim's ``(3, m, n) float32`` colour planes (0..255) over a window."""
+    twill = _twill(cloth, noise, rows, cols)
+    fade = _fade(cloth, noise, rows, cols)
+    grain = 0.07 * noise.grain[noise.local(rows), cols]
+    grain += 1.0
+    weft = 0.22 * fade
+    weft += 0.1
+    weft *= twill  # (0.1 + 0.22 * fade) * twill
+    thread = cloth.details.thread.window(rows, cols)
+    light = _light(cloth, rows, cols)
+    ridge = 0.3 * twill
+    weave = ridge + 0.82
+    ridge += 0.75
+    colour = np.empty((3, *fade.shape), np.float32)
+    base, mix = np.empty_like(fade), np.empty_like(fade)
+    for c in range(3):
+        # base = (deep + (worn - deep) * fade) * (0.82 + 0.3 twill), darker in
+        # the twill's valleys; base += weft * (WEFT - base), the weft showing;
+        # base *= grain; base += thread * (THREAD * (0.75 + 0.3 twill) - base);
+        # colour = base * light.
+        np.multiply(fade, _INDIGO_WORN[c] - _INDIGO_DEEP[c], out=base)
+        base += _INDIGO_DEEP[c]
+        base *= weave
+        np.subtract(_WEFT[c], base, out=mix)
+        mix *= weft
+        base += mix
+        base *= grain
+        if thread is not None:
+            np.multiply(ridge, _THREAD[c], out=mix)
+            mix -= base
+            mix *= thread
+            base += mix
+        np.multiply(base, light, out=colour[c])
+    _paint_metal(colour, light, rows, cols, cloth.details.metal)
+    return colour
+
+
 def denim_windows(
     image: np.ndarray,
     box: tuple[int, int, int, int],
@@ -671,108 +856,14 @@ def denim_windows(
         ``(rows, cols, colour)`` for each of the :func:`row_windows` of ``needed``,
         ``colour`` being the window's ``(3, m, n) float32`` planes (0..255).
     """
-    layout = _layout(vertices, garment)
-    shape = h, w = coverage.shape
-    unit = layout.unit
-    rng = np.random.default_rng(seed)
-    details = _denim_details(layout, shape, garment, rng)
-
-    # Wear: lighter down the middle of each panel (it rubs), blotchy fading, and
-    # slubby warp yarns (streaks along the legs); a soft occlusion towards the outline
-    # makes the legs look round.
-    depth = cv2.distanceTransform(np.greater(coverage, 0.5).view(np.uint8), cv2.DIST_L2, 3)
-    period = max(3.0, unit / 170.0)
-    blotches = _FrameNoise(rng, layout, shape, 0.12 * unit, 0.2 * unit)
-    slubs = _FrameNoise(rng, layout, shape, 1.3 * period, 25 * period)
-    wobble = _FrameNoise(rng, layout, shape, 4 * period, 4 * period)
-    shading = _photo_shading(image, box, weight, unit)
-    to_wear, to_occlusion = np.float32(1.0 / (0.16 * unit)), np.float32(1.0 / (0.07 * unit))
-
-    cx = (np.arange(w, dtype=np.float32) + 0.5)[None, :]
-    scale = np.float32(2 * np.pi / period)
-    across, down = layout.across.astype(np.float32), layout.down.astype(np.float32)
-    for strip, top in enumerate(range(0, h, _TEXTURE_ROWS)):
+    cloth = _cloth(image, box, vertices, coverage, weight, garment, seed)
+    for strip, top in enumerate(range(0, coverage.shape[0], _TEXTURE_ROWS)):
         boxes = row_windows(needed[top : top + _TEXTURE_ROWS], top)
         if not boxes:
             continue
-        # The strip's noise, drawn only as far right and down as it is needed (the
-        # grain's blur reaches 2 rows further).
-        bottom = max(rows.stop for rows, _ in boxes)
-        right = max(cols.stop for _, cols in boxes)
-        strip_wobble = wobble.rows(top, bottom, right)
-        strip_blotches = blotches.rows(top, bottom, right)
-        strip_slubs = slubs.rows(top, bottom, right)
-        strip_rng = np.random.default_rng([seed, strip])
-        grain_rows = min(bottom + 2, top + _TEXTURE_ROWS, h) - top
-        strip_grain = _blur(strip_rng.standard_normal((grain_rows, w), dtype=np.float32), 0.5)
+        noise = _strip_noise(cloth, strip, top, boxes)
         for rows, cols in boxes:
-            local = slice(rows.start - top, rows.stop - top)
-            cy = (np.arange(rows.start, rows.stop, dtype=np.float32) + 0.5)[:, None]
-            x = cx[:, cols]
-            # The arithmetic below runs in place but keeps the float32 operations and
-            # their order as written in the comments, so the bytes do not depend on
-            # the windows; a layer with no ink here is skipped (x * 1, x + 0).
-            # 2/1 twill: ridges at 45 degrees to the garment axes, rising to the right
-            # as on right-hand twill (mirrored where ``flip``: on the cross-grain
-            # waistband), wobbling like real yarn; sharpened from a sine into
-            # flat-topped ridges in [0, 1]:
-            # smoothstep(0.5 + 0.9 * sin((along + downs * (1 - 2 flip)) * scale + 0.35 wobble)).
-            twill = x * down[0] + cy * down[1]
-            flip = details.flip.window(rows, cols)
-            if flip is not None:
-                twill *= 1.0 - 2.0 * flip
-            twill += x * across[0] + cy * across[1]
-            twill *= scale
-            twill += np.float32(0.35) * strip_wobble[local, cols]
-            np.sin(twill, out=twill)
-            twill *= 0.9
-            twill += 0.5
-            twill = _smoothstep(twill)
-            # clip(wear + (0.15 + 0.32 * smoothstep(depth / (0.16 unit))) + 0.12 blotches
-            # + 0.06 slubs, 0, 1), the wear mapped to the indigo's fading.
-            fade = 0.15 + 0.32 * _smoothstep(depth[rows, cols] * to_wear)
-            wear = details.wear.window(rows, cols)
-            if wear is not None:
-                fade += wear
-            fade += 0.12 * strip_blotches[local, cols]
-            fade += 0.06 * strip_slubs[local, cols]
-            np.clip(fade, 0.0, 1.0, out=fade)
-            grain = 0.07 * strip_grain[local, cols]
-            grain += 1.0
-            weft = 0.22 * fade
-            weft += 0.1
-            weft *= twill  # (0.1 + 0.22 * fade) * twill
-            thread = details.thread.window(rows, cols)
-            # dark * (0.7 + 0.3 * smoothstep(depth / (0.07 unit))) * shading: construction
-            # shadows, occlusion, the photo's folds.
-            light = details.dark(rows, cols)
-            light *= 0.7 + 0.3 * _smoothstep(depth[rows, cols] * to_occlusion)
-            light *= shading(rows, cols)
-            ridge = 0.3 * twill
-            weave = ridge + 0.82
-            ridge += 0.75
-            colour = np.empty((3, *fade.shape), np.float32)
-            base, mix = np.empty_like(fade), np.empty_like(fade)
-            for c in range(3):
-                # base = (deep + (worn - deep) * fade) * (0.82 + 0.3 twill), darker in
-                # the twill's valleys; base += weft * (WEFT - base), the weft showing;
-                # base *= grain; base += thread * (THREAD * (0.75 + 0.3 twill) - base);
-                # colour = base * light.
-                np.multiply(fade, _INDIGO_WORN[c] - _INDIGO_DEEP[c], out=base)
-                base += _INDIGO_DEEP[c]
-                base *= weave
-                np.subtract(_WEFT[c], base, out=mix)
-                mix *= weft
-                base += mix
-                base *= grain
-                if thread is not None:
-                    np.multiply(ridge, _THREAD[c], out=mix)
-                    mix -= base
-                    mix *= thread
-                    base += mix
-                np.multiply(base, light, out=colour[c])
-            _paint_metal(colour, light, rows, cols, details.metal)
-            yield rows, cols, colour
+            yield rows, cols, _window_colour(cloth, noise, rows, cols)
 
 
 def render_denim(
