@@ -165,11 +165,6 @@ def stroke_outlines(start: Tensor, end: Tensor, half_width: float = 2.5, cap_seg
     return torch.cat([cap_end, cap_start], dim=-2)
 
 
-#: Stroke bands: cells per row, and how many of them lie left of the centre line.
-BAND_COLUMNS = 13
-BAND_LEFT = 6
-
-
 @dataclass
 class StrokeBands:
     """Exact stroke coverage of segments on thin bands of canvas cells.
