@@ -542,6 +542,41 @@ def segment(
     background could not be told apart. Alpha and user masks may fill the frame, short
     of all of it (the user said so).
     """
+    arguments = _check_arguments(method, image, threshold, rect, mask, working_size)
+    height, width = arguments.rgb.shape[:2]
+    size = shape_for((height, width), int(working_size))
+    details: dict = {"working_shape": (size[1], size[0])}
+    if method == "auto":
+        method = _auto_given(arguments, details)
+    photo = method in ("auto", "threshold", "grabcut")
+    given = _given_silhouette(method, arguments)
+    if given is not None:
+        working, used = clean(_coverage(given, size)), method
+    else:
+        rgb = downscale(arguments.rgb, size)
+        working, used = _segment_photo(rgb, method, arguments.threshold, arguments.rect, width / size[0], details)
+    _check_area(working, photo, details)
+    full = _full_resolution(working, given, size, (width, height))
+    contour = outer_contour(working, (width / size[0], height / size[1]))
+    return Segmentation(mask=full, method=used, contour=contour, details=details)
+
+
+@dataclass(frozen=True)
+class _Arguments:
+    """:func:`segment`'s image and options, checked: ``rgb`` ``(H, W, 3)`` and ``alpha``
+    ``(H, W)`` or None, the given ``mask`` ``(H, W)`` and ``rect`` (clipped to the
+    image) or None."""
+
+    rgb: np.ndarray
+    alpha: np.ndarray | None
+    threshold: float | None
+    mask: np.ndarray | None
+    rect: tuple[int, int, int, int] | None
+
+
+def _check_arguments(method: str, image: np.ndarray, threshold, rect, mask, working_size) -> _Arguments:
+    """:func:`segment`'s arguments checked one after the other: JeansError for the
+    first bad one."""
     if method not in METHODS:
         raise JeansError(f"unknown segmentation method {method!r} (choose from {', '.join(METHODS)})")
     rgb, alpha = _validate_image(image)
@@ -555,42 +590,52 @@ def segment(
         if not 0 <= threshold <= 255:  # also rejects NaN
             raise JeansError("threshold must be a number between 0 and 255")
     height, width = rgb.shape[:2]
-    size = shape_for((height, width), int(working_size))
-    details: dict = {"working_shape": (size[1], size[0])}
     user_mask = None
     if mask is not None:
         user_mask = np.asarray(mask)
         if user_mask.shape != (height, width):
             raise JeansError(f"mask shape {user_mask.shape} does not match the image ({height}, {width})")
     rect_full = _validate_rect(rect, (height, width)) if rect is not None else None
+    return _Arguments(rgb, alpha, threshold, user_mask, rect_full)
 
-    if method == "auto":
-        if user_mask is not None:
-            method, details["reason"] = "mask", "a mask was given"
-        elif rect_full is not None:
-            method, details["reason"] = "grabcut", "a rect was given"
-        elif alpha is not None and _alpha_meaningful(alpha):
-            method, details["reason"] = "alpha", "the alpha channel is a silhouette"
 
-    photo = method in ("auto", "threshold", "grabcut")
-    given = None  # (H, W) uint8 0..255: a full-resolution silhouette handed to us
+def _auto_given(arguments: _Arguments, details: dict) -> str:
+    """What auto uses when the caller handed it the object: ``mask`` or ``rect``
+    when given, the alpha channel when it is a silhouette, else ``"auto"``; the
+    reason goes to ``details``."""
+    if arguments.mask is not None:
+        details["reason"] = "a mask was given"
+        return "mask"
+    if arguments.rect is not None:
+        details["reason"] = "a rect was given"
+        return "grabcut"
+    if arguments.alpha is not None and _alpha_meaningful(arguments.alpha):
+        details["reason"] = "the alpha channel is a silhouette"
+        return "alpha"
+    return "auto"
+
+
+def _given_silhouette(method: str, arguments: _Arguments) -> np.ndarray | None:
+    """The full-resolution ``(H, W) uint8`` 0..255 silhouette that methods ``alpha`` and
+    ``mask`` are handed (JeansError where it is missing or empty); None for the
+    photo methods."""
     if method == "alpha":
+        alpha = arguments.alpha
         if alpha is None:
             raise JeansError("method 'alpha' needs an RGBA image")
         if not (alpha < 128).any():
             raise JeansError("alpha channel is fully opaque: no silhouette in it")
-        given = alpha
-        used = "alpha"
-    elif method == "mask":
-        if user_mask is None:
+        return alpha
+    if method == "mask":
+        if arguments.mask is None:
             raise JeansError("method 'mask' needs a mask")
-        given = binarise(user_mask).astype(np.uint8) * 255
-        used = "mask"
-    if given is not None:
-        working = clean(_coverage(given, size))
-    else:
-        working, used = _segment_photo(downscale(rgb, size), method, threshold, rect_full, width / size[0], details)
+        return binarise(arguments.mask).astype(np.uint8) * 255
+    return None
 
+
+def _check_area(working: np.ndarray, photo: bool, details: dict) -> None:
+    """JeansError unless the working mask holds a plausible object: not under 0.5% of
+    the image, not all of it, and for the photo methods not filling the frame."""
     fraction = float(working.mean())
     details["area_fraction"] = round(fraction, 4)
     if fraction < MIN_AREA_FRACTION:
@@ -598,6 +643,13 @@ def segment(
     if working.all() or (photo and fills_frame(working)):
         raise JeansError("the object fills the whole frame: no background to separate it from")
 
+
+def _full_resolution(
+    working: np.ndarray, given: np.ndarray | None, size: tuple[int, int], full_size: tuple[int, int]
+) -> np.ndarray:
+    """The working mask (``size``, ``(width, height)``) upsampled to ``full_size``, a
+    given silhouette deciding the pixels along its boundary."""
+    width, height = full_size
     # Linear upsampling of 0/255 then >= 128 is the "resize the float mask, threshold
     # at 0.5" rule in a quarter of the memory (matters for 24-MP photos).
     soft = resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR)
@@ -607,8 +659,7 @@ def segment(
         # the cleaned boundary (where the upsampled mask is neither 0 nor 255) use it.
         band = (soft > 0) & (soft < 255)
         full[band] = given[band] >= 128
-    contour = outer_contour(working, (width / size[0], height / size[1]))
-    return Segmentation(mask=full, method=used, contour=contour, details=details)
+    return full
 
 
 def _segment_photo(
