@@ -112,48 +112,71 @@ def collect(
     one job. When two inputs would share outputs (``dog.png`` and ``dog.svg``), the second
     keeps its extension in their names (``dog.svg.jeans.png``).
     """
+    found = _find_inputs(arguments, recursive)
+    jobs, clashes = _give_outputs(found.files, output_dir, fmt, extras)
+    return Collection(jobs, found.problems + clashes, found.ignored, found.own_outputs)
+
+
+@dataclass
+class _Found:
+    """The files the PATH arguments name, before they get outputs."""
+
+    files: list[tuple[Path, str, Path]]  # (path, display, relative folder)
+    problems: list[Problem]
+    ignored: list[str]  # files in folders that are not images
+    own_outputs: list[str]  # named files that are jeanscv outputs
+
+
+def _find_inputs(arguments: list[str], recursive: bool) -> _Found:
+    """Expand the PATH arguments (patterns, folders, files) into the files they name,
+    in order, with a problem for each that names none."""
     extensions = candidate_extensions()
-    found: list[tuple[Path, str, Path]] = []  # (path, display, relative folder)
-    problems: list[Problem] = []
-    ignored: list[str] = []
-    own: list[str] = []
+    found = _Found([], [], [], [])
 
     def add_folder(folder: Path, display: str) -> None:
-        before = len(found)
+        before = len(found.files)
         for parts in _walk(folder, recursive):
             shown = str(Path(display, *parts))
             if _is_own_output_name(parts[-1]):
                 continue
             if os.path.splitext(parts[-1])[1].lower() in extensions:
-                found.append((folder.joinpath(*parts), shown, Path(*parts[:-1])))
+                found.files.append((folder.joinpath(*parts), shown, Path(*parts[:-1])))
             else:
-                ignored.append(shown)
-        if len(found) == before:
+                found.ignored.append(shown)
+        if len(found.files) == before:
             where = "in this folder or its subfolders" if recursive else "in this folder (use -r to search subfolders)"
-            problems.append(Problem(display, f"no supported images found {where}"))
+            found.problems.append(Problem(display, f"no supported images found {where}"))
 
     for argument in arguments:
         matches = _expand(argument)
         names = [argument] if matches is None else matches
         if matches == []:
-            problems.append(Problem(argument, "no files match this pattern"))
+            found.problems.append(Problem(argument, "no files match this pattern"))
         for name in names:
             path = Path(name)
             if path.is_dir():
                 add_folder(path, name)
             elif not os.path.lexists(path):
-                problems.append(Problem(name, "file not found"))
+                found.problems.append(Problem(name, "file not found"))
             elif is_own_output(path):
-                own.append(name)
+                found.own_outputs.append(name)
             else:
-                found.append((path, name, Path()))
+                found.files.append((path, name, Path()))
+    return found
 
+
+def _give_outputs(
+    files: list[tuple[Path, str, Path]], output_dir: Path | None, fmt: str | None, extras: tuple[str, ...]
+) -> tuple[list[Job], list[Problem]]:
+    """A job for each distinct file with its output paths, and a problem for each whose
+    outputs another input already has or that would overwrite an input."""
     jobs: list[Job] = []
+    problems: list[Problem] = []
     cwd = os.getcwd()
-    inputs = {_identity(path, cwd) for path, _, _ in found}
+    inputs = {_identity(path, cwd) for path, _, _ in files}
     claimed: dict[str, str] = {}  # output path -> display name of the input that owns it
     seen: set[str] = set()
-    for path, display, relative in found:
+    for path, display, relative in files:
         key = _identity(path, cwd)
         if key in seen:
             continue  # the same file named twice (or by a folder and by name)
@@ -174,7 +197,7 @@ def collect(
         else:
             claimed.update(dict.fromkeys(keys, display))
             jobs.append(Job(len(jobs), path, display, outputs))
-    return Collection(jobs, problems, ignored, own)
+    return jobs, problems
 
 
 def _outputs(base: Path, path: Path, fmt: str | None, extras: tuple[str, ...]) -> dict[str, Path]:
