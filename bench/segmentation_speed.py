@@ -35,11 +35,11 @@ TARGET_SECONDS = 0.6
 STAGES = (
     ("scene", "jeanscv.silhouette.scene", "Scene.__init__"),
     ("saliency labels", "jeanscv.silhouette.consensus", "hypothesis_labels"),
-    ("hypothesis cuts", "jeanscv.silhouette.photo", "_grabcut_or_none"),
+    ("hypothesis cuts", "jeanscv.silhouette.photo", "grabcut_or_none"),
     ("border-colour cut", "jeanscv.silhouette.photo", "_grabcut_hypothesis"),
     ("threshold", "jeanscv.silhouette.photo", "_threshold"),
     ("choose", "jeanscv.silhouette.consensus", "choose"),
-    ("refine", "jeanscv.silhouette.photo", "_refine"),
+    ("refine", "jeanscv.silhouette.photo", "refine"),
     ("working size (all)", "jeanscv.silhouette.photo", "_segment_photo"),
 )
 

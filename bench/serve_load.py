@@ -72,7 +72,39 @@ def main() -> None:
     parser.add_argument("--concurrency", type=int, default=8)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    rng = random.Random(args.seed)
+    goods = good_photos()
+    bads = list(bad_files(goods[-1][1]).items())
+    plan = request_plan(args.requests, args.seed)
+
+    server = Server("--max-upload-mb", "20")
+    load = Load(server, goods, bads, plan, args.seed)
+    wall = load.run(args.concurrency)
+    resident, high_water = server.memory()
+    running_leftovers = server.leftovers()
+    code, stop_seconds = server.stop()
+    after = server.leftovers() + ([str(server.tmp)] if any(server.tmp.iterdir()) else [])
+
+    statuses = load.statuses
+    answered = sum(v for k, v in statuses.items() if k != "no answer")
+    print(f"{len(plan)} requests, {args.concurrency} at a time, in {wall:.1f} s: {answered} answered")
+    print(f"503 (busy, retried after 2 s): {load.busy} times")
+    print("final status: " + ", ".join(f"{k}: {v}" for k, v in sorted(statuses.items(), key=lambda kv: str(kv[0]))))
+    for kind, values in sorted(load.seconds.items()):
+        print(f"  {kind}: {len(values)}, median {statistics.median(values):.2f} s, max {max(values):.2f} s")
+    print(f"server memory: peak {high_water / 2**20:.0f} MB (VmHWM), {resident / 2**20:.0f} MB at the end")
+    print(f"temporary files: {len(running_leftovers)} while running, {len(after)} after Ctrl-C")
+    print(f"Ctrl-C: exit status {code} in {stop_seconds:.1f} s")
+    for failure in load.failures[:10]:
+        print("FAILED", failure)
+    server.remove()
+    ok = not load.failures and high_water < MEMORY_LIMIT and not running_leftovers and not after and code == 0
+    print("PASS" if ok else "FAIL")
+    raise SystemExit(0 if ok else 1)
+
+
+def good_photos() -> list[tuple[str, bytes]]:
+    """``(name, JPEG bytes)`` of the good uploads: the shared real photos at their own
+    size, the first three upscaled to 12 MP."""
     pairs = photo_pairs([SHARED])
     if not pairs:
         raise SystemExit(f"no photos in {SHARED}")
@@ -84,55 +116,68 @@ def main() -> None:
             pixels, _ = upscale(pixels, reference, 12.0)
             name += "-12mp"
         goods.append((f"{name}.jpg", jpeg(pixels)))
-    bads = list(bad_files(goods[-1][1]).items())
+    return goods
+
+
+def request_plan(requests: int, seed: int) -> list[str]:
+    """The kinds of the ``requests`` requests, shuffled, an upload first (something to
+    click on early)."""
+    rng = random.Random(seed)
     kinds = ["upload"] * 50 + ["bad"] * 30 + ["click"] * 70 + ["download"] * 50
-    plan = [kinds[i % len(kinds)] for i in range(args.requests)]
+    plan = [kinds[i % len(kinds)] for i in range(requests)]
     rng.shuffle(plan)
-    plan = ["upload"] + plan[: args.requests - 1]  # something to click on early
+    return ["upload"] + plan[: requests - 1]
 
-    server = Server("--max-upload-mb", "20")
-    photos: list[dict] = []  # answers of good uploads (photo id, size, downloads)
-    lock = threading.Lock()
-    statuses: collections.Counter = collections.Counter()
-    seconds: dict[str, list[float]] = collections.defaultdict(list)
-    failures: list[str] = []
-    peak = [0]
-    busy = [0]  # 503 answers, each followed by a retry
-    done = threading.Event()
 
-    def watch() -> None:
-        while not done.is_set():
-            peak[0] = max(peak[0], server.memory()[0])
+class Load:
+    """The requests of one run, sent by worker threads, and what they got, under one lock."""
+
+    def __init__(self, server: Server, goods: list, bads: list, plan: list[str], seed: int) -> None:
+        self.server, self.goods, self.bads, self.seed = server, goods, bads, seed
+        self.queue = list(enumerate(plan))
+        self.photos: list[dict] = []  # answers of good uploads (photo id, size, downloads)
+        self.lock = threading.Lock()
+        self.statuses: collections.Counter = collections.Counter()
+        self.seconds: dict[str, list[float]] = collections.defaultdict(list)
+        self.failures: list[str] = []
+        self.peak = 0
+        self.busy = 0  # 503 answers, each followed by a retry
+        self.done = threading.Event()
+
+    def watch(self) -> None:
+        while not self.done.is_set():
+            self.peak = max(self.peak, self.server.memory()[0])
             time.sleep(0.2)
 
-    def one(kind: str, chooser: random.Random) -> None:
+    def one(self, kind: str, chooser: random.Random) -> None:
         """One request, sent again after the server's Retry-After while it answers 503
         (as the page does), at most ``RETRIES`` times."""
         for _ in range(RETRIES + 1):
-            status = attempt_one(kind, chooser)
+            status = self.attempt_one(kind, chooser)
             if status != 503:
                 return
-            with lock:
-                busy[0] += 1
+            with self.lock:
+                self.busy += 1
             time.sleep(2)
-        with lock:
-            statuses[503] += 1  # still busy after every retry: answered, all the same
+        with self.lock:
+            self.statuses[503] += 1  # still busy after every retry: answered, all the same
 
-    def attempt_one(kind: str, chooser: random.Random) -> int:
-        with lock:
-            known = list(photos)
+    def attempt_one(self, kind: str, chooser: random.Random) -> int:
+        server = self.server
+        with self.lock:
+            known = list(self.photos)
         if kind in ("click", "download") and not known:
             kind = "upload"
         began = time.perf_counter()
         if kind == "upload":
-            name, data = chooser.choice(goods)
+            name, data = chooser.choice(self.goods)
             status, _, body = server.upload(name, data)
             if status == 200:
                 answer = json.loads(body)
-                with lock:
-                    photos.append(answer)
+                with self.lock:
+                    self.photos.append(answer)
         elif kind == "bad":
-            name, data = chooser.choice(bads)
+            name, data = chooser.choice(self.bads)
             status, _, body = server.upload(name, data)
         elif kind == "click":
             answer = chooser.choice(known)
@@ -140,8 +185,8 @@ def main() -> None:
             points = [[round(chooser.uniform(0.3, 0.7) * width, 1), round(chooser.uniform(0.3, 0.7) * height, 1)]]
             status, _, body = server.render(answer["photo"], [{"positive": points, "negative": []}])
             if status == 200:
-                with lock:
-                    photos.append(json.loads(body) | {"photo": answer["photo"]})
+                with self.lock:
+                    self.photos.append(json.loads(body) | {"photo": answer["photo"]})
         else:
             answer = chooser.choice(known)
             what = chooser.choice(["image", "meme", "json", "svg", "clicks", "image", "json", "gif"])
@@ -151,61 +196,42 @@ def main() -> None:
             status, _, body = server.request("GET", path)
             kind = f"download {what}"
         spent = time.perf_counter() - began
-        with lock:
+        with self.lock:
             if status != 503:
-                statuses[status] += 1
-                seconds[kind.split()[0]].append(spent)
+                self.statuses[status] += 1
+                self.seconds[kind.split()[0]].append(spent)
             if not (status in (200, 503) or 400 <= status < 500):
-                failures.append(f"{kind}: {status} {body[:200]!r}")
+                self.failures.append(f"{kind}: {status} {body[:200]!r}")
         return status
 
-    queue = list(enumerate(plan))
-
-    def worker(number: int) -> None:
-        chooser = random.Random(args.seed * 1000 + number)
+    def worker(self, number: int) -> None:
+        chooser = random.Random(self.seed * 1000 + number)
         while True:
-            with lock:
-                if not queue:
+            with self.lock:
+                if not self.queue:
                     return
-                _, kind = queue.pop(0)
+                _, kind = self.queue.pop(0)
             try:
-                one(kind, chooser)
+                self.one(kind, chooser)
             except Exception as exc:  # noqa: BLE001 - a request that got no answer
-                with lock:
-                    statuses["no answer"] += 1
-                    failures.append(f"{kind}: {type(exc).__name__}: {exc}")
+                with self.lock:
+                    self.statuses["no answer"] += 1
+                    self.failures.append(f"{kind}: {type(exc).__name__}: {exc}")
 
-    watcher = threading.Thread(target=watch, daemon=True)
-    watcher.start()
-    began = time.perf_counter()
-    threads = [threading.Thread(target=worker, args=(n,)) for n in range(args.concurrency)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join()
-    wall = time.perf_counter() - began
-    done.set()
-    watcher.join()
-    resident, high_water = server.memory()
-    running_leftovers = server.leftovers()
-    code, stop_seconds = server.stop()
-    after = server.leftovers() + ([str(server.tmp)] if any(server.tmp.iterdir()) else [])
-
-    answered = sum(v for k, v in statuses.items() if k != "no answer")
-    print(f"{len(plan)} requests, {args.concurrency} at a time, in {wall:.1f} s: {answered} answered")
-    print(f"503 (busy, retried after 2 s): {busy[0]} times")
-    print("final status: " + ", ".join(f"{k}: {v}" for k, v in sorted(statuses.items(), key=lambda kv: str(kv[0]))))
-    for kind, values in sorted(seconds.items()):
-        print(f"  {kind}: {len(values)}, median {statistics.median(values):.2f} s, max {max(values):.2f} s")
-    print(f"server memory: peak {high_water / 2**20:.0f} MB (VmHWM), {resident / 2**20:.0f} MB at the end")
-    print(f"temporary files: {len(running_leftovers)} while running, {len(after)} after Ctrl-C")
-    print(f"Ctrl-C: exit status {code} in {stop_seconds:.1f} s")
-    for failure in failures[:10]:
-        print("FAILED", failure)
-    server.remove()
-    ok = not failures and high_water < MEMORY_LIMIT and not running_leftovers and not after and code == 0
-    print("PASS" if ok else "FAIL")
-    raise SystemExit(0 if ok else 1)
+    def run(self, concurrency: int) -> float:
+        """Send every request, ``concurrency`` at a time; the seconds it took."""
+        watcher = threading.Thread(target=self.watch, daemon=True)
+        watcher.start()
+        began = time.perf_counter()
+        threads = [threading.Thread(target=self.worker, args=(n,)) for n in range(concurrency)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        wall = time.perf_counter() - began
+        self.done.set()
+        watcher.join()
+        return wall
 
 
 if __name__ == "__main__":

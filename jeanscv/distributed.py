@@ -14,7 +14,8 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +111,66 @@ def process_one(source: str, picture: str, report: str, options: JeansOptions, o
     return record
 
 
+def _checked_options(apply_options: dict[str, Any]) -> JeansOptions:
+    """``apply_jeans``'s options by name, checked, with the garment resolved here on the
+    driver (a ``.toml`` or plugin garment need not exist on the workers)."""
+    from .plugins import get_garment
+
+    unknown = [name for name in apply_options if name not in JeansOptions.names()]
+    if unknown:
+        raise JeansError(f"bad apply_jeans option: got an unexpected keyword argument {unknown[0]!r}")
+    options = JeansOptions(**apply_options)
+    return options.replace(garment=get_garment(options.garment))
+
+
+@contextmanager
+def _dask_client(distributed: Any, client: Any) -> Iterator[Any]:
+    """``client``, else the current client, else a local cluster started for this call
+    and closed when it ends."""
+    own_client = None
+    if client is None:
+        try:
+            client = distributed.get_client()
+        except ValueError:
+            own_client = client = distributed.Client(processes=True)
+    try:
+        yield client
+    finally:
+        if own_client is not None:
+            own_client.close()
+            if own_client.cluster is not None:
+                own_client.cluster.close()
+
+
+def _run_jobs(client: Any, jobs: list[tuple[Path, Path, Path]], options: JeansOptions, overwrite: bool) -> list[dict]:
+    """One :func:`process_one` task per job on ``client``; the records in job order, a
+    task lost on the cluster (a worker dying) failing only its own input."""
+    futures = client.map(
+        process_one,
+        [str(p) for p, _, _ in jobs],
+        [str(pic) for _, pic, _ in jobs],
+        [str(rep) for _, _, rep in jobs],
+        options=options,
+        overwrite=overwrite,
+        pure=False,
+    )
+    records = []
+    for (path, _, _), future in zip(jobs, futures):
+        try:
+            record = future.result()
+        except Exception as exc:  # noqa: BLE001 - a lost worker fails only its inputs
+            record = {
+                "status": "failed",
+                "input": str(path),
+                "output": "",
+                "report": "",
+                "error": f"the task failed on the cluster: {failure_reason(exc)}",
+                "seconds": 0.0,
+            }
+        records.append(record)
+    return records
+
+
 def run_on_dask(
     paths: Iterable[str | os.PathLike],
     output_dir: str | os.PathLike,
@@ -137,54 +198,14 @@ def run_on_dask(
         The records of :func:`process_one` (with ``worker``, the address it ran on).
     """
     distributed = _dask_distributed()
-    from .plugins import get_garment
-
-    unknown = [name for name in apply_options if name not in JeansOptions.names()]
-    if unknown:
-        raise JeansError(f"bad apply_jeans option: got an unexpected keyword argument {unknown[0]!r}")
-    options = JeansOptions(**apply_options)
-    options = options.replace(garment=get_garment(options.garment))
+    options = _checked_options(apply_options)
     jobs = output_paths(paths, output_dir)
     try:
         Path(output_dir).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise JeansError(f"cannot create output folder: {(exc.strerror or str(exc)).lower()}") from None
-
-    own_client = None
-    if client is None:
-        try:
-            client = distributed.get_client()
-        except ValueError:
-            own_client = client = distributed.Client(processes=True)
-    try:
-        futures = client.map(
-            process_one,
-            [str(p) for p, _, _ in jobs],
-            [str(pic) for _, pic, _ in jobs],
-            [str(rep) for _, _, rep in jobs],
-            options=options,
-            overwrite=overwrite,
-            pure=False,
-        )
-        records = []
-        for (path, _, _), future in zip(jobs, futures):
-            try:
-                record = future.result()
-            except Exception as exc:  # noqa: BLE001 - a lost worker fails only its inputs
-                record = {
-                    "status": "failed",
-                    "input": str(path),
-                    "output": "",
-                    "report": "",
-                    "error": f"the task failed on the cluster: {failure_reason(exc)}",
-                    "seconds": 0.0,
-                }
-            records.append(record)
-    finally:
-        if own_client is not None:
-            own_client.close()
-            if own_client.cluster is not None:
-                own_client.cluster.close()
+    with _dask_client(distributed, client) as running:
+        records = _run_jobs(running, jobs, options, overwrite)
 
     if report is not None:
         from .io.write import write_text

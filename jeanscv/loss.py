@@ -21,7 +21,7 @@ import torch
 from torch import Tensor
 
 from .garments import JEANS, Garment
-from .render import coverage_from_winding, polygon_edges, rasterize
+from .render import StrokeBands, coverage_from_winding, polygon_edges, rasterize
 from .terms import (  # noqa: F401 - re-exported: loss is where the API has named them
     INTER_PAIRS,
     PAPER_TERMS,
@@ -217,6 +217,40 @@ def upright_term(vertices: Tensor, garment: Garment = JEANS) -> Tensor:
     return torch.clamp(free - (down_cos + level_cos) / 2, min=0.0, max=saturated)
 
 
+def _fill_terms(fill: Tensor, s_win: Tensor, outside_sum: Tensor, s_total: Tensor) -> tuple[Tensor, Tensor]:
+    """``coverage`` and ``inside`` ``(B,)`` from the polygons' fill ``(B, h, w)`` over the
+    canvas window, the silhouette there ``s_win``, its mass outside the window and its
+    total: (1/2 - the silhouette's uncovered share)^2, and the fill's share off it."""
+    fill_area = fill.sum(dim=(-2, -1))
+    uncovered = outside_sum + torch.clamp(s_win - fill, min=0).sum(dim=(-2, -1))
+    coverage = (0.5 - uncovered / s_total.clamp(min=_EPS)) ** 2
+    inside = torch.clamp(fill - s_win, min=0).sum(dim=(-2, -1)) / fill_area.clamp(min=_EPS)
+    return coverage, inside
+
+
+def _stroke_terms(
+    bands: StrokeBands, batch: int, num_edges: int, silhouette: Tensor, indices: _GarmentTensors
+) -> tuple[Tensor, Tensor, Tensor]:
+    """``open``, ``closed`` and ``inter`` ``(B,)`` from the ``batch x num_edges`` edges'
+    stroke bands over the silhouette ``(H, W)`` or ``(B, H, W)``."""
+    pixels = silhouette.shape[-2] * silhouette.shape[-1]
+    alpha = bands.alpha.reshape(batch, num_edges, -1)
+    flat = bands.flat_index(silhouette.shape[-1]).reshape(batch, num_edges, -1)
+    key = flat + torch.arange(batch, device=flat.device)[:, None, None] * pixels
+    # A shared (H, W) silhouette is indexed by pixel, a per-candidate one by key.
+    s_index = flat if silhouette.dim() == 2 else key
+    silhouette_flat = silhouette.reshape(-1)
+    s_cells = silhouette_flat.index_select(0, s_index.reshape(-1)).view(flat.shape)
+    areas = alpha.sum(dim=-1)
+    on_body = (alpha * s_cells).sum(dim=-1)
+    shared = _shared_pixels(alpha, key, silhouette_flat, pixels, per_candidate=silhouette.dim() == 3)
+
+    open_term = -_union_on_body(shared, areas, on_body, indices.open_edges)
+    closed_term = _union_on_body(shared, areas, on_body, indices.closed_edges)
+    inter = _pair_terms(shared, areas, indices.pairs)
+    return open_term, closed_term, inter
+
+
 def jalgorithm_terms(
     vertices: Tensor,
     silhouette: Tensor,
@@ -266,28 +300,8 @@ def jalgorithm_terms(
         canvas_size=tuple(silhouette.shape[-2:]),
         half_width=stroke_half_width,
     )
-    fill = coverage_from_winding(winding)
-    fill_area = fill.sum(dim=(-2, -1))
-    uncovered = window.outside_sum + torch.clamp(s_win - fill, min=0).sum(dim=(-2, -1))
-    coverage = (0.5 - uncovered / s_total.clamp(min=_EPS)) ** 2
-    inside = torch.clamp(fill - s_win, min=0).sum(dim=(-2, -1)) / fill_area.clamp(min=_EPS)
-
-    pixels = silhouette.shape[-2] * silhouette.shape[-1]
-    alpha = bands.alpha.reshape(batch, num_edges, -1)
-    flat = bands.flat_index(silhouette.shape[-1]).reshape(batch, num_edges, -1)
-    key = flat + torch.arange(batch, device=flat.device)[:, None, None] * pixels
-    # A shared (H, W) silhouette is indexed by pixel, a per-candidate one by key.
-    s_index = flat if silhouette.dim() == 2 else key
-    silhouette_flat = silhouette.reshape(-1)
-    s_cells = silhouette_flat.index_select(0, s_index.reshape(-1)).view(flat.shape)
-    areas = alpha.sum(dim=-1)
-    on_body = (alpha * s_cells).sum(dim=-1)
-    shared = _shared_pixels(alpha, key, silhouette_flat, pixels, per_candidate=silhouette.dim() == 3)
-
-    open_term = -_union_on_body(shared, areas, on_body, indices.open_edges)
-    closed_term = _union_on_body(shared, areas, on_body, indices.closed_edges)
-    inter = _pair_terms(shared, areas, indices.pairs)
-
+    coverage, inside = _fill_terms(coverage_from_winding(winding), s_win, window.outside_sum, s_total)
+    open_term, closed_term, inter = _stroke_terms(bands, batch, num_edges, silhouette, indices)
     return {
         "center": center,
         "coverage": coverage,

@@ -165,11 +165,6 @@ def stroke_outlines(start: Tensor, end: Tensor, half_width: float = 2.5, cap_seg
     return torch.cat([cap_end, cap_start], dim=-2)
 
 
-#: Stroke bands: cells per row, and how many of them lie left of the centre line.
-BAND_COLUMNS = 13
-BAND_LEFT = 6
-
-
 @dataclass
 class StrokeBands:
     """Exact stroke coverage of segments on thin bands of canvas cells.
@@ -239,6 +234,159 @@ def _plan_bands(start: np.ndarray, end: np.ndarray, half_width: float) -> _BandP
     return _BandPlan(rows, row_start, np.floor(centre_x) - BAND_LEFT, np.zeros(len(start), bool))
 
 
+@dataclass(frozen=True)
+class _FillLayout:
+    """Where the fill's winding rows lie in the difference buffer (first, before the
+    bands): ``maps`` maps of ``height`` rows of ``width + 2`` cells, each map fed by
+    ``per_map`` edges."""
+
+    maps: int
+    per_map: int
+    height: int
+    width: int
+
+    @property
+    def edges(self) -> int:
+        """How many fill edges there are (they come first among the pieces' owners)."""
+        return self.maps * self.per_map
+
+    @property
+    def size(self) -> int:
+        """The fill's part of the difference buffer."""
+        return self.maps * self.height * (self.width + 2)
+
+
+@dataclass
+class _Strokes:
+    """The strokes as the scanline sees them: capsule outlines of segments reflected so
+    every band runs along y, and where those bands lie."""
+
+    outline_start: Tensor  # (segments * per_outline, 2)
+    outline_end: Tensor
+    segments: int
+    per_outline: int  # outline edges per segment
+    plan: _BandPlan
+    empty: Tensor  # (segments,) bool: the segment lies wholly off the canvas
+
+    @property
+    def size(self) -> int:
+        """The bands' part of the difference buffer."""
+        return self.segments * self.plan.rows * (BAND_COLUMNS + 2)
+
+
+def _stroke_outlines(strokes: tuple[Tensor, Tensor], canvas_size: tuple[int, int], half_width: float) -> _Strokes:
+    """Clip the segments ``(M, 2)`` near the canvas and outline them on their bands."""
+    margin = half_width + 2.0
+    seg_start, seg_end, empty = _clip_to_box(strokes[0], strokes[1], -margin, max(canvas_size) + margin)
+    with torch.no_grad():
+        delta = (seg_end - seg_start).abs()
+        x_major = delta[:, 0] > delta[:, 1]
+    # Reflect x-major segments so every band runs along y; the reflection flips
+    # the outline's orientation, which |W| ignores.
+    seg_start = torch.where(x_major[:, None], seg_start.flip(-1), seg_start)
+    seg_end = torch.where(x_major[:, None], seg_end.flip(-1), seg_end)
+    plan = _plan_bands(seg_start.detach().cpu().numpy(), seg_end.detach().cpu().numpy(), half_width)
+    plan.x_major = x_major.cpu().numpy()
+    outline_start, outline_end = polygon_edges(stroke_outlines(seg_start, seg_end, half_width))
+    return _Strokes(
+        outline_start.reshape(-1, 2),
+        outline_end.reshape(-1, 2),
+        seg_start.shape[0],
+        outline_start.shape[1],
+        plan,
+        empty,
+    )
+
+
+@dataclass
+class _Cells:
+    """Where each grid piece adds to the difference buffer (numpy, not differentiated)."""
+
+    base: np.ndarray  # int64 flat index of the piece's buffer row
+    cell_x: np.ndarray  # left edge of the piece's cell, in pixels
+    local_col: np.ndarray  # int64 the cell's column in the buffer row
+    keep: np.ndarray  # bool: the piece touches a cell of its map or band
+
+
+def _piece_cells(
+    x_mid: Tensor, y_mid: Tensor, owner: np.ndarray, fill: _FillLayout, strokes: _Strokes | None
+) -> _Cells:
+    """The buffer cell of every piece: fill pieces (owners below ``fill.edges``) on
+    their map's rows, stroke pieces on their segment's band."""
+    col = np.floor(x_mid.detach().cpu().numpy())
+    row = np.floor(y_mid.detach().cpu().numpy())
+    cells = _Cells(
+        np.zeros(owner.shape, np.int64),
+        np.zeros(owner.shape),
+        np.zeros(owner.shape, np.int64),
+        np.zeros(owner.shape, bool),
+    )
+    is_fill = owner < fill.edges
+    if is_fill.any():
+        # Pieces left of the grid touch no cell; pieces right of it cover the whole
+        # row, which the column-0 entry alone expresses once col is clamped to W.
+        f_row, f_col = row[is_fill], col[is_fill]
+        cells.keep[is_fill] = (f_row >= 0) & (f_row < fill.height) & (f_col >= 0)
+        f_col = np.clip(f_col, 0, fill.width)
+        f_map = owner[is_fill] // fill.per_map
+        cells.base[is_fill] = (f_map * fill.height + np.clip(f_row, 0, fill.height - 1).astype(np.int64)) * (
+            fill.width + 2
+        )
+        cells.cell_x[is_fill] = f_col
+        cells.local_col[is_fill] = f_col
+    is_band = ~is_fill
+    if is_band.any():
+        plan = strokes.plan
+        segment = (owner[is_band] - fill.edges) // strokes.per_outline
+        b_row = row[is_band] - plan.row_start[segment]
+        ok = (b_row >= 0) & (b_row < plan.rows)
+        b_row = np.clip(b_row, 0, plan.rows - 1).astype(np.int64)
+        b_col = col[is_band] - plan.col_start[segment, b_row]
+        cells.keep[is_band] = ok & (b_col >= 0)
+        b_col = np.clip(b_col, 0, BAND_COLUMNS)
+        cells.base[is_band] = fill.size + (segment * plan.rows + b_row) * (BAND_COLUMNS + 2)
+        cells.cell_x[is_band] = plan.col_start[segment, b_row] + b_col
+        cells.local_col[is_band] = b_col
+    return cells
+
+
+def _scatter(x_mid: Tensor, dy: Tensor, cells: _Cells, size: int) -> Tensor:
+    """The difference buffer ``(size,)``: each piece adds the part of its cell left of
+    it to the cell, and ``dy`` to every cell right of that, as differences that one
+    cumsum along the row spreads."""
+    device, dtype = x_mid.device, x_mid.dtype
+    keep = torch.as_tensor(cells.keep, device=device)
+    cell_x_t = torch.as_tensor(cells.cell_x, dtype=dtype, device=device)
+    weight = torch.where(keep, dy, torch.zeros_like(dy))
+    inside_area = (x_mid - cell_x_t).clamp(0.0, 1.0) * weight
+    base, local_col = cells.base, cells.local_col
+    index = np.concatenate([base, base + local_col, base + local_col + 1])
+    values = torch.cat([weight, inside_area - weight, -inside_area])
+    return values.new_zeros(size).index_add(0, torch.as_tensor(index, device=device), values)
+
+
+def _read_bands(diff: Tensor, strokes: _Strokes, canvas_size: tuple[int, int]) -> StrokeBands:
+    """The strokes' :class:`StrokeBands` from the bands' part of the difference buffer,
+    reflected back to canvas columns and rows."""
+    device, plan = diff.device, strokes.plan
+    band_winding = torch.cumsum(diff.view(strokes.segments, plan.rows, BAND_COLUMNS + 2), dim=-1)
+    major = (plan.row_start[:, None] + np.arange(plan.rows)).astype(np.int64)[:, :, None]
+    minor = plan.col_start.astype(np.int64)[:, :, None] + np.arange(BAND_COLUMNS)
+    major = np.broadcast_to(major, minor.shape)
+    flip = plan.x_major[:, None, None]
+    x, y = np.where(flip, major, minor), np.where(flip, minor, major)
+    height, width = canvas_size
+    inside = (x >= 0) & (x < width) & (y >= 0) & (y < height) & ~strokes.empty.cpu().numpy()[:, None, None]
+    inside_t = torch.as_tensor(inside, device=device)
+    alpha = coverage_from_winding(band_winding[..., :BAND_COLUMNS])
+    return StrokeBands(
+        torch.where(inside_t, alpha, torch.zeros_like(alpha)),
+        torch.as_tensor(x, device=device),
+        torch.as_tensor(y, device=device),
+        inside_t,
+    )
+
+
 def rasterize(
     fill_edges: tuple[Tensor, Tensor] | None = None,
     fill_size: tuple[int, int] = (256, 256),
@@ -261,99 +409,29 @@ def rasterize(
     starts: list[Tensor] = []
     ends: list[Tensor] = []
     bounds: list[np.ndarray] = []
-    num_maps = per_map = num_fill = 0
-    fill_h, fill_w = fill_size
+    fill = _FillLayout(*(fill_edges[0].shape[:2] if fill_edges is not None else (0, 0)), *fill_size)
     if fill_edges is not None:
-        num_maps, per_map = fill_edges[0].shape[:2]
-        num_fill = num_maps * per_map
         starts.append(fill_edges[0].reshape(-1, 2))
         ends.append(fill_edges[1].reshape(-1, 2))
-        bounds.append(np.tile([0.0, fill_w, 0.0, fill_h], (num_fill, 1)))
-    num_segments = per_outline = 0
+        bounds.append(np.tile([0.0, fill.width, 0.0, fill.height], (fill.edges, 1)))
+    outlines = None
     if strokes is not None:
-        margin = half_width + 2.0
-        seg_start, seg_end, empty = _clip_to_box(strokes[0], strokes[1], -margin, max(canvas_size) + margin)
-        num_segments = seg_start.shape[0]
-        with torch.no_grad():
-            delta = (seg_end - seg_start).abs()
-            x_major = delta[:, 0] > delta[:, 1]
-        # Reflect x-major segments so every band runs along y; the reflection flips
-        # the outline's orientation, which |W| ignores.
-        seg_start = torch.where(x_major[:, None], seg_start.flip(-1), seg_start)
-        seg_end = torch.where(x_major[:, None], seg_end.flip(-1), seg_end)
-        plan = _plan_bands(seg_start.detach().cpu().numpy(), seg_end.detach().cpu().numpy(), half_width)
-        plan.x_major = x_major.cpu().numpy()
-        outline_start, outline_end = polygon_edges(stroke_outlines(seg_start, seg_end, half_width))
-        per_outline = outline_start.shape[1]
-        starts.append(outline_start.reshape(-1, 2))
-        ends.append(outline_end.reshape(-1, 2))
-        bounds.append(np.tile([-np.inf, np.inf, -np.inf, np.inf], (num_segments * per_outline, 1)))
+        outlines = _stroke_outlines(strokes, canvas_size, half_width)
+        starts.append(outlines.outline_start)
+        ends.append(outlines.outline_end)
+        bounds.append(np.tile([-np.inf, np.inf, -np.inf, np.inf], (outlines.segments * outlines.per_outline, 1)))
     if not starts:
         return None, None
 
     x_mid, y_mid, dy, owner = _cut_at_grid(torch.cat(starts), torch.cat(ends), np.vstack(bounds))
-    col = np.floor(x_mid.detach().cpu().numpy())
-    row = np.floor(y_mid.detach().cpu().numpy())
-    fill_buffer = num_maps * fill_h * (fill_w + 2)
-    band_stride = BAND_COLUMNS + 2
-    base = np.zeros(owner.shape, np.int64)  # flat index of the piece's buffer row
-    cell_x = np.zeros(owner.shape)  # left edge of the piece's cell, in pixels
-    local_col = np.zeros(owner.shape, np.int64)  # the cell's column in the buffer row
-    keep = np.zeros(owner.shape, bool)
-    is_fill = owner < num_fill
-    if is_fill.any():
-        # Pieces left of the grid touch no cell; pieces right of it cover the whole
-        # row, which the column-0 entry alone expresses once col is clamped to W.
-        f_row, f_col = row[is_fill], col[is_fill]
-        keep[is_fill] = (f_row >= 0) & (f_row < fill_h) & (f_col >= 0)
-        f_col = np.clip(f_col, 0, fill_w)
-        f_map = owner[is_fill] // per_map
-        base[is_fill] = (f_map * fill_h + np.clip(f_row, 0, fill_h - 1).astype(np.int64)) * (fill_w + 2)
-        cell_x[is_fill] = f_col
-        local_col[is_fill] = f_col
-    is_band = ~is_fill
-    if is_band.any():
-        segment = (owner[is_band] - num_fill) // per_outline
-        b_row = row[is_band] - plan.row_start[segment]
-        ok = (b_row >= 0) & (b_row < plan.rows)
-        b_row = np.clip(b_row, 0, plan.rows - 1).astype(np.int64)
-        b_col = col[is_band] - plan.col_start[segment, b_row]
-        keep[is_band] = ok & (b_col >= 0)
-        b_col = np.clip(b_col, 0, BAND_COLUMNS)
-        base[is_band] = fill_buffer + (segment * plan.rows + b_row) * band_stride
-        cell_x[is_band] = plan.col_start[segment, b_row] + b_col
-        local_col[is_band] = b_col
-
-    device, dtype = x_mid.device, x_mid.dtype
-    keep = torch.as_tensor(keep, device=device)
-    cell_x_t = torch.as_tensor(cell_x, dtype=dtype, device=device)
-    weight = torch.where(keep, dy, torch.zeros_like(dy))
-    inside_area = (x_mid - cell_x_t).clamp(0.0, 1.0) * weight
-    index = np.concatenate([base, base + local_col, base + local_col + 1])
-    values = torch.cat([weight, inside_area - weight, -inside_area])
-    band_buffer = num_segments * (plan.rows if strokes is not None else 0) * band_stride
-    diff = values.new_zeros(fill_buffer + band_buffer).index_add(0, torch.as_tensor(index, device=device), values)
+    cells = _piece_cells(x_mid, y_mid, owner, fill, outlines)
+    diff = _scatter(x_mid, dy, cells, fill.size + (outlines.size if outlines is not None else 0))
     winding = None
     if fill_edges is not None:
-        winding = torch.cumsum(diff[:fill_buffer].view(num_maps, fill_h, fill_w + 2), dim=-1)[..., :fill_w]
-    bands = None
-    if strokes is not None:
-        band_winding = torch.cumsum(diff[fill_buffer:].view(num_segments, plan.rows, band_stride), dim=-1)
-        major = (plan.row_start[:, None] + np.arange(plan.rows)).astype(np.int64)[:, :, None]
-        minor = plan.col_start.astype(np.int64)[:, :, None] + np.arange(BAND_COLUMNS)
-        major = np.broadcast_to(major, minor.shape)
-        flip = plan.x_major[:, None, None]
-        x, y = np.where(flip, major, minor), np.where(flip, minor, major)
-        height, width = canvas_size
-        inside = (x >= 0) & (x < width) & (y >= 0) & (y < height) & ~empty.cpu().numpy()[:, None, None]
-        inside_t = torch.as_tensor(inside, device=device)
-        alpha = coverage_from_winding(band_winding[..., :BAND_COLUMNS])
-        bands = StrokeBands(
-            torch.where(inside_t, alpha, torch.zeros_like(alpha)),
-            torch.as_tensor(x, device=device),
-            torch.as_tensor(y, device=device),
-            inside_t,
-        )
+        winding = torch.cumsum(diff[: fill.size].view(fill.maps, fill.height, fill.width + 2), dim=-1)[
+            ..., : fill.width
+        ]
+    bands = _read_bands(diff[fill.size :], outlines, canvas_size) if outlines is not None else None
     return winding, bands
 
 

@@ -63,6 +63,56 @@ def server():
     thread.join(timeout=15)
 
 
+def _drop_photo(page, image: np.ndarray) -> None:
+    """Drop ``image`` on the page as ``pets.png``, as a person drags it from their files,
+    and wait until the page shows a result."""
+    data = base64.b64encode(png_bytes(image)).decode()
+    page.evaluate(
+        """async (data) => {
+            const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
+            const transfer = new DataTransfer();
+            transfer.items.add(new File([bytes], "pets.png", { type: "image/png" }));
+            document.getElementById("drop").dispatchEvent(
+                new DragEvent("drop", { dataTransfer: transfer, bubbles: true, cancelable: true }));
+        }""",
+        data,
+    )
+    page.wait_for_function(
+        "() => document.getElementById('result').complete && document.getElementById('result').naturalWidth > 0",
+        timeout=60_000,
+    )
+
+
+def _wait_until(page, done, seconds: float, message: str) -> None:
+    """Let the page run until ``done()`` is true; fail with ``message`` after ``seconds``."""
+    deadline = time.monotonic() + seconds
+    while not done():
+        assert time.monotonic() < deadline, message
+        page.wait_for_timeout(50)
+
+
+def _shown_pixels(page, height: int, width: int) -> np.ndarray:
+    """The result picture as the page shows it, ``(height, width, 3)`` int RGB."""
+    shown = page.evaluate("""() => {
+        const img = document.getElementById('result');
+        const canvas = document.createElement('canvas');
+        canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
+        const context = canvas.getContext('2d');
+        context.drawImage(img, 0, 0);
+        return Array.from(context.getImageData(0, 0, canvas.width, canvas.height).data);
+    }""")
+    return np.asarray(shown, np.uint8).reshape(height, width, 4)[..., :3].astype(int)
+
+
+def _download(page, button: str, folder: Path) -> Path:
+    """Click the download ``button`` and save what it downloads in ``folder``."""
+    with page.expect_download(timeout=60_000) as download:
+        page.click(button)
+    saved = folder / download.value.suggested_filename
+    download.value.save_as(saved)
+    return saved
+
+
 def test_drop_click_caption_download(server, tmp_path):
     problem = _browser_missing()
     assert not problem, problem  # in CI: fail instead of skipping
@@ -87,27 +137,8 @@ def test_drop_click_caption_download(server, tmp_path):
             page.goto(server + "/")
             page.wait_for_selector("#garment option", state="attached")
 
-            # Drop the photo on the page, as a person drags it from their files.
-            data = base64.b64encode(png_bytes(photo.image)).decode()
-            page.evaluate(
-                """async (data) => {
-                    const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
-                    const transfer = new DataTransfer();
-                    transfer.items.add(new File([bytes], "pets.png", { type: "image/png" }));
-                    document.getElementById("drop").dispatchEvent(
-                        new DragEvent("drop", { dataTransfer: transfer, bubbles: true, cancelable: true }));
-                }""",
-                data,
-            )
-            page.wait_for_function(
-                "() => document.getElementById('result').complete && "
-                "document.getElementById('result').naturalWidth > 0",
-                timeout=60_000,
-            )
-            deadline = time.monotonic() + 30
-            while not renders:
-                assert time.monotonic() < deadline, "no answer to the upload"
-                page.wait_for_timeout(50)
+            _drop_photo(page, photo.image)
+            _wait_until(page, lambda: renders, 30, "no answer to the upload")
             path, first = renders[-1]
             assert path == "/api/photos"
             assert first["clicks"] is False and first["objects"]
@@ -121,10 +152,7 @@ def test_drop_click_caption_download(server, tmp_path):
             x, y = inside_point(photo_masks[target])
             box = page.locator("#result").bounding_box()
             page.mouse.click(box["x"] + x / 800 * box["width"], box["y"] + y / 500 * box["height"])
-            deadline = time.monotonic() + 60
-            while renders[-1][0] == "/api/photos":
-                assert time.monotonic() < deadline, "no render after the click"
-                page.wait_for_timeout(50)
+            _wait_until(page, lambda: renders[-1][0] != "/api/photos", 60, "no render after the click")
             path, clicked = renders[-1]
             assert path.endswith("/render"), renders
             assert clicked["clicks"] is True
@@ -134,15 +162,7 @@ def test_drop_click_caption_download(server, tmp_path):
                 f"() => document.getElementById('result').src.endsWith({json.dumps(clicked['preview'])})"
             )
             page.wait_for_function("() => document.getElementById('result').complete")
-            shown = page.evaluate("""() => {
-                const img = document.getElementById('result');
-                const canvas = document.createElement('canvas');
-                canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
-                const context = canvas.getContext('2d');
-                context.drawImage(img, 0, 0);
-                return Array.from(context.getImageData(0, 0, canvas.width, canvas.height).data);
-            }""")
-            pixels = np.asarray(shown, np.uint8).reshape(500, 800, 4)[..., :3].astype(int)
+            pixels = _shown_pixels(page, 500, 800)
             changed = np.abs(pixels - photo.image.astype(int)).max(axis=-1) > 40  # beyond JPEG noise
             assert changed[photo_masks[target]].mean() > 0.1 and changed[photo_masks[other]].mean() < 0.01
 
@@ -157,10 +177,7 @@ def test_drop_click_caption_download(server, tmp_path):
                 shot = os.environ["JEANSCV_SCREENSHOT"]
                 jpeg = shot.lower().endswith((".jpg", ".jpeg"))
                 page.screenshot(path=shot, type="jpeg" if jpeg else "png", quality=88 if jpeg else None)
-            with page.expect_download(timeout=60_000) as download:
-                page.click("#dl-meme")
-            saved = tmp_path / download.value.suggested_filename
-            download.value.save_as(saved)
+            saved = _download(page, "#dl-meme", tmp_path)
             assert saved.name == "pets.jeans.png"
             with Image.open(saved) as meme:
                 assert meme.size == (800, 500)

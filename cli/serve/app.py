@@ -140,36 +140,51 @@ def _reason(exc: BaseException, name: str) -> str:
     return f"{name}: {reason}"
 
 
-def create_app(config: Config) -> Guard:
-    """The ASGI application: Starlette's routes behind the :class:`Guard`."""
-    state = State(config)
-    pages = {
-        path: (resources.files(__package__).joinpath("static", file).read_bytes(), media)
-        for path, (file, media) in _STATIC.items()
-    }
+async def _json_object(request: Request) -> dict:
+    """The request's JSON object body, else JeansError saying why."""
+    try:
+        body = await request.body()
+        data = json.loads(body or b"{}")
+    except (ValueError, UnicodeDecodeError):
+        raise JeansError("the request body is not valid JSON") from None
+    if not isinstance(data, dict):
+        raise JeansError("expected a JSON object")
+    return data
 
-    async def static(request: Request) -> Response:
-        body, media = pages[request.url.path]
+
+class _Api:
+    """The endpoints of one server (a method a route) and the jobs they give its pool,
+    over the server's :class:`State`."""
+
+    def __init__(self, config: Config, state: State) -> None:
+        self.config, self.state = config, state
+        self.pages = {
+            path: (resources.files(__package__).joinpath("static", file).read_bytes(), media)
+            for path, (file, media) in _STATIC.items()
+        }
+
+    async def static(self, request: Request) -> Response:
+        body, media = self.pages[request.url.path]
         return Response(body, media_type=media, headers={"Cache-Control": "no-cache"})
 
-    async def options(request: Request) -> Response:
+    async def options(self, request: Request) -> Response:
         return JSONResponse(
             {
                 "garments": engine.garments(),
                 "styles": list(engine.STYLES),
                 "postures": list(engine.POSTURES),
-                "max_upload": config.max_upload,
-                "folder": config.folder is not None,
-                "folder_name": config.folder.name if config.folder is not None else "",
+                "max_upload": self.config.max_upload,
+                "folder": self.config.folder is not None,
+                "folder_name": self.config.folder.name if self.config.folder is not None else "",
             }
         )
 
-    def render(photo_id: str, photo: engine.Photo, clicks, render_options) -> dict:
-        objects = engine.fitted_objects(photo, clicks, render_options, state.backend)
+    def render(self, photo_id: str, photo: engine.Photo, clicks, render_options) -> dict:
+        objects = engine.fitted_objects(photo, clicks, render_options, self.state.backend)
         preview = engine.encode_preview(engine.preview_picture(photo, objects, render_options))
         result = Result(photo_id, clicks, render_options, preview)
-        result_id = state.results.put(result, _result_bytes(result))
-        state.photos.resize(photo_id, photo.nbytes)
+        result_id = self.state.results.put(result, _result_bytes(result))
+        self.state.photos.resize(photo_id, photo.nbytes)
         return {
             "result": result_id,
             "preview": f"/api/results/{result_id}/preview",
@@ -181,29 +196,29 @@ def create_app(config: Config) -> Guard:
             "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
         }
 
-    def open_and_render(path: Path, name: str, clicks_for) -> dict:
-        photo = engine.open_photo(path, name, config.max_pixels)
-        photo_id = state.photos.put(photo, photo.nbytes)
+    def open_and_render(self, path: Path, name: str, clicks_for) -> dict:
+        photo = engine.open_photo(path, name, self.config.max_pixels)
+        photo_id = self.state.photos.put(photo, photo.nbytes)
         clicks = clicks_for(photo) if clicks_for else None
-        answer = render(photo_id, photo, clicks, engine.RenderOptions())
+        answer = self.render(photo_id, photo, clicks, engine.RenderOptions())
         if clicks is not None:
             answer["saved_clicks"] = [obj.to_json() for obj in clicks.objects]
         if photo.kind == "photo":
             # The click session (about half a second) is made while the person looks.
-            state.pool.submit_background(_prepare_session, photo)
+            self.state.pool.submit_background(_prepare_session, photo)
         return {"photo": photo_id, "name": name, "kind": photo.kind, **answer}
 
-    def upload_job(upload, name: str) -> dict:
-        fd, temporary = tempfile.mkstemp(suffix=_suffix(name), dir=state.tmp)
+    def upload_job(self, upload, name: str) -> dict:
+        fd, temporary = tempfile.mkstemp(suffix=_suffix(name), dir=self.state.tmp)
         try:
             with os.fdopen(fd, "wb") as copy:
                 upload.file.seek(0)
                 shutil.copyfileobj(upload.file, copy, 1 << 20)
-            return open_and_render(Path(temporary), name, None)
+            return self.open_and_render(Path(temporary), name, None)
         finally:
             os.unlink(temporary)
 
-    async def upload(request: Request) -> Response:
+    async def upload(self, request: Request) -> Response:
         try:
             form = await request.form(max_files=1, max_fields=8)
         except TooLarge:
@@ -216,7 +231,7 @@ def create_app(config: Config) -> Guard:
                 return _error(400, "expected a multipart form with one file in the field 'file'")
             name = _safe_name(file.filename)
             try:
-                return JSONResponse(await state.pool.run(upload_job, file, name))
+                return JSONResponse(await self.state.pool.run(self.upload_job, file, name))
             except Busy:
                 return _busy()
             except Exception as exc:  # noqa: BLE001 - the command line's one-line reason
@@ -224,20 +239,9 @@ def create_app(config: Config) -> Guard:
         finally:
             await form.close()
 
-    async def _json_object(request: Request) -> dict:
-        """The request's JSON object body, else JeansError saying why."""
-        try:
-            body = await request.body()
-            data = json.loads(body or b"{}")
-        except (ValueError, UnicodeDecodeError):
-            raise JeansError("the request body is not valid JSON") from None
-        if not isinstance(data, dict):
-            raise JeansError("expected a JSON object")
-        return data
-
-    async def rerender(request: Request) -> Response:
+    async def rerender(self, request: Request) -> Response:
         photo_id = request.path_params["photo"]
-        photo = state.photos.get(photo_id)
+        photo = self.state.photos.get(photo_id)
         if photo is None:
             return _error(404, "no such photo (it may have expired: drop it again)")
         try:
@@ -247,15 +251,15 @@ def create_app(config: Config) -> Guard:
         except JeansError as exc:
             return _error(422, f"{photo.name}: {exc}")
         try:
-            answer = await state.pool.run(render, photo_id, photo, clicks, render_options)
+            answer = await self.state.pool.run(self.render, photo_id, photo, clicks, render_options)
         except Busy:
             return _busy()
         except Exception as exc:  # noqa: BLE001
             return _error(422, _reason(exc, photo.name))
         return JSONResponse({"photo": photo_id, "name": photo.name, "kind": photo.kind, **answer})
 
-    async def result_file(request: Request) -> Response:
-        result = state.results.get(request.path_params["result"])
+    async def result_file(self, request: Request) -> Response:
+        result = self.state.results.get(request.path_params["result"])
         kind = request.path_params["kind"]
         if result is None:
             return _error(404, "no such result (it may have expired: render it again)")
@@ -263,7 +267,7 @@ def create_app(config: Config) -> Guard:
             return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
         if kind not in DOWNLOADS:
             return _error(404, f"no download called {kind!r}")
-        photo = state.photos.get(result.photo_id)
+        photo = self.state.photos.get(result.photo_id)
         if photo is None:
             return _error(404, "the photo has expired: drop it again")
         wanted = result.options
@@ -279,7 +283,7 @@ def create_app(config: Config) -> Guard:
         made = result.downloads.get(key)
         if made is None:
             try:
-                made = await state.pool.run(make_download, photo, result, wanted, kind)
+                made = await self.state.pool.run(self.make_download, photo, result, wanted, kind)
             except Busy:
                 return _busy()
             except Exception as exc:  # noqa: BLE001
@@ -287,7 +291,7 @@ def create_app(config: Config) -> Guard:
             if len(made[0]) < (32 << 20):
                 result.downloads = {k: v for k, v in result.downloads.items() if k[0] != kind}  # the newest of a kind
                 result.downloads[key] = made
-                state.results.resize(request.path_params["result"], _result_bytes(result))
+                self.state.results.resize(request.path_params["result"], _result_bytes(result))
         data, filename = made
         media = _MEDIA.get(Path(filename).suffix.lower(), "application/octet-stream")
         if filename.endswith(".clicks.json"):
@@ -295,8 +299,8 @@ def create_app(config: Config) -> Guard:
         ascii_name = "".join(c if c.isascii() and c.isprintable() and c not in '"\\' else "_" for c in filename)
         return Response(data, media_type=media, headers={"Content-Disposition": f'attachment; filename="{ascii_name}"'})
 
-    async def original(request: Request) -> Response:
-        photo = state.photos.get(request.path_params["photo"])
+    async def original(self, request: Request) -> Response:
+        photo = self.state.photos.get(request.path_params["photo"])
         if photo is None:
             return _error(404, "no such photo (it may have expired: drop it again)")
         if photo.original_jpeg is None:
@@ -305,52 +309,54 @@ def create_app(config: Config) -> Guard:
             photo.original_jpeg, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"}
         )
 
-    def make_download(photo: engine.Photo, result: Result, wanted: engine.RenderOptions, kind: str):
-        objects = engine.fitted_objects(photo, result.clicks, wanted, state.backend)
-        state.photos.resize(result.photo_id, photo.nbytes)
+    def make_download(self, photo: engine.Photo, result: Result, wanted: engine.RenderOptions, kind: str):
+        objects = engine.fitted_objects(photo, result.clicks, wanted, self.state.backend)
+        self.state.photos.resize(result.photo_id, photo.nbytes)
         return engine.download(photo, objects, wanted, kind, result.clicks)
 
     # ------------------------------------------------------------------ folder mode
-    def folder_items() -> list:
-        folder = config.folder.resolve()
-        return [job for job in engine.folder_jobs(config.folder) if _inside(job.path, folder)]
+    def folder_items(self) -> list:
+        folder = self.config.folder.resolve()
+        return [job for job in engine.folder_jobs(self.config.folder) if _inside(job.path, folder)]
 
-    def folder_job(request: Request):
-        if config.folder is None:
+    def folder_job(self, request: Request):
+        if self.config.folder is None:
             return None
         index = request.path_params["item"]
-        jobs = folder_items()
+        jobs = self.folder_items()
         return jobs[index] if 0 <= index < len(jobs) else None
 
-    def item_entry(index: int, job) -> dict:
+    def item_entry(self, index: int, job) -> dict:
         return {
             "item": index,
-            "name": str(job.path.relative_to(config.folder)),
+            "name": str(job.path.relative_to(self.config.folder)),
             "output": job.outputs["image"].exists(),
             "clicks": engine.saved_clicks(job) is not None,
             "thumb": f"/api/folder/{index}/thumb",
         }
 
-    async def folder_list(request: Request) -> Response:
-        if config.folder is None:
+    async def folder_list(self, request: Request) -> Response:
+        if self.config.folder is None:
             return _error(404, "not serving a folder (start with: jeanscv serve FOLDER)")
-        jobs = folder_items()
-        return JSONResponse({"folder": config.folder.name, "items": [item_entry(i, j) for i, j in enumerate(jobs)]})
+        jobs = self.folder_items()
+        return JSONResponse(
+            {"folder": self.config.folder.name, "items": [self.item_entry(i, j) for i, j in enumerate(jobs)]}
+        )
 
-    def thumbnail(job) -> bytes | str:
-        with state.folder_lock:
+    def thumbnail(self, job) -> bytes | str:
+        with self.state.folder_lock:
             if engine.output_stale(job):
-                reason = engine.write_folder_outputs(job, state.backend, config.max_pixels)
+                reason = engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels)
                 if reason:
                     return reason
         return engine.thumbnail(job.outputs["image"], _THUMB_SIDE)
 
-    async def folder_thumb(request: Request) -> Response:
-        job = folder_job(request)
+    async def folder_thumb(self, request: Request) -> Response:
+        job = self.folder_job(request)
         if job is None:
             return _error(404, "no such photo in the folder")
         try:
-            made = await state.pool.run(thumbnail, job)
+            made = await self.state.pool.run(self.thumbnail, job)
         except Busy:
             return _busy()
         except Exception as exc:  # noqa: BLE001
@@ -359,8 +365,8 @@ def create_app(config: Config) -> Guard:
             return _error(422, f"{job.path.name}: {made}")
         return Response(made, media_type="image/jpeg", headers={"Cache-Control": "no-cache"})
 
-    async def folder_open(request: Request) -> Response:
-        job = folder_job(request)
+    async def folder_open(self, request: Request) -> Response:
+        job = self.folder_job(request)
         if job is None:
             return _error(404, "no such photo in the folder")
 
@@ -375,7 +381,7 @@ def create_app(config: Config) -> Guard:
             return clicks
 
         try:
-            answer = await state.pool.run(open_and_render, job.path, job.path.name, saved)
+            answer = await self.state.pool.run(self.open_and_render, job.path, job.path.name, saved)
         except Busy:
             return _busy()
         except Exception as exc:  # noqa: BLE001
@@ -383,15 +389,15 @@ def create_app(config: Config) -> Guard:
         answer["item"] = request.path_params["item"]
         return JSONResponse(answer)
 
-    async def folder_save(request: Request) -> Response:
-        job = folder_job(request)
+    async def folder_save(self, request: Request) -> Response:
+        job = self.folder_job(request)
         if job is None:
             return _error(404, "no such photo in the folder")
         try:
             data = await _json_object(request)
         except JeansError as exc:
             return _error(422, str(exc))
-        photo = state.photos.get(str(data.get("photo", "")))
+        photo = self.state.photos.get(str(data.get("photo", "")))
         if photo is None:
             return _error(404, "no such photo (it may have expired: open it again)")
         if photo.name != job.path.name:
@@ -404,43 +410,48 @@ def create_app(config: Config) -> Guard:
             return _error(422, f"{photo.name}: {exc}")
 
         def save() -> None:
-            with state.folder_lock:
-                engine.save_clicks(job, clicks, state.backend, config.max_pixels)
+            with self.state.folder_lock:
+                engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels)
 
         try:
-            await state.pool.run(save)
+            await self.state.pool.run(save)
         except Busy:
             return _busy()
         except Exception as exc:  # noqa: BLE001
             return _error(422, _reason(exc, photo.name))
-        return JSONResponse(item_entry(request.path_params["item"], job))
+        return JSONResponse(self.item_entry(request.path_params["item"], job))
 
     @asynccontextmanager
-    async def lifespan(app):
-        state.open()
-        if config.warm:
+    async def lifespan(self, app):
+        self.state.open()
+        if self.config.warm:
             engine.warm_up()
         try:
             yield
         finally:
-            state.close()
+            self.state.close()
 
-    routes = [Route(path, static) for path in _STATIC] + [
-        Route("/api/options", options),
-        Route("/api/photos", upload, methods=["POST"]),
-        Route("/api/photos/{photo}/render", rerender, methods=["POST"]),
-        Route("/api/photos/{photo}/original", original),
-        Route("/api/results/{result}/{kind}", result_file),
-        Route("/api/folder", folder_list),
-        Route("/api/folder/{item:int}/thumb", folder_thumb),
-        Route("/api/folder/{item:int}/open", folder_open, methods=["POST"]),
-        Route("/api/folder/{item:int}/clicks", folder_save, methods=["POST"]),
+    async def too_large(self, request: Request, exc: TooLarge) -> Response:
+        return _error(413, TooLarge.reason(self.config.max_upload))
+
+
+def create_app(config: Config) -> Guard:
+    """The ASGI application: Starlette's routes behind the :class:`Guard`."""
+    state = State(config)
+    api = _Api(config, state)
+    routes = [Route(path, api.static) for path in _STATIC] + [
+        Route("/api/options", api.options),
+        Route("/api/photos", api.upload, methods=["POST"]),
+        Route("/api/photos/{photo}/render", api.rerender, methods=["POST"]),
+        Route("/api/photos/{photo}/original", api.original),
+        Route("/api/results/{result}/{kind}", api.result_file),
+        Route("/api/folder", api.folder_list),
+        Route("/api/folder/{item:int}/thumb", api.folder_thumb),
+        Route("/api/folder/{item:int}/open", api.folder_open, methods=["POST"]),
+        Route("/api/folder/{item:int}/clicks", api.folder_save, methods=["POST"]),
     ]
 
-    async def too_large(request: Request, exc: TooLarge) -> Response:
-        return _error(413, TooLarge.reason(config.max_upload))
-
-    app = Starlette(routes=routes, lifespan=lifespan, exception_handlers={TooLarge: too_large})
+    app = Starlette(routes=routes, lifespan=api.lifespan, exception_handlers={TooLarge: api.too_large})
     app.state.jeanscv = state
     names = own_names(config.host) | set(config.extra_names)
     return Guard(app, names=names, port=config.port or None, max_body=config.max_upload)

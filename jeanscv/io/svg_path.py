@@ -224,10 +224,90 @@ def _path_chunks(d: str, size: int = 1 << 18) -> Iterator[tuple[str, bool]]:
     yield d[start:], True
 
 
+class _Reflected:
+    """The control points a following S/s or T/t reflects: the last C or S's second
+    (``cubic``) and the last Q or T's (``quad``); None after any other command."""
+
+    __slots__ = ("cubic", "quad")
+
+    def __init__(self) -> None:
+        self.cubic: tuple[float, float] | None = None
+        self.quad: tuple[float, float] | None = None
+
+
+def _arc_arguments(tokens: list[str], i: int, cmd: str) -> tuple[list, int]:
+    """An arc's 7 parameters from ``tokens[i]`` (its flags may be glued to what follows
+    them) and the index of the next token."""
+    try:
+        rx, ry, rot = float(tokens[i]), float(tokens[i + 1]), float(tokens[i + 2])
+        large, i = _take_flag(tokens, i + 3)
+        sweep, i = _take_flag(tokens, i)
+        x, y = float(tokens[i]), float(tokens[i + 1])
+        i += 2
+    except (ValueError, IndexError):
+        raise JeansError(f"malformed path data: expected 7 arc parameters after {cmd!r}") from None
+    return [rx, ry, rot, large, sweep, x, y], i
+
+
+def _numbers(tokens: list[str], k: int, cmd: str) -> list[float]:
+    """The ``k`` numbers of one argument group of ``cmd`` (``tokens``: the next ``k``)."""
+    try:
+        v = [float(t) for t in tokens]
+    except ValueError:
+        bad = _bad_token(tokens)
+        if bad:
+            raise JeansError(f"malformed path data: unexpected {bad[:20]!r}") from None
+        v = []
+    if len(v) != k:
+        raise JeansError(f"malformed path data: expected {k} numbers after {cmd!r}")
+    return v
+
+
+def _draw(b: _PathBuilder, cmd: str, v: list, last: _Reflected) -> str:
+    """Draw one argument group ``v`` of ``cmd`` (any command but Z) from ``b``'s current
+    point, updating ``last``. Returns the command that further groups repeat (after a
+    moveto, a lineto)."""
+    upper, rel = cmd.upper(), cmd.islower()
+    x0, y0 = b.x, b.y
+    cubic = quad = None
+    if upper == "A":
+        x, y = v[5], v[6]
+        if rel:
+            x, y = x + x0, y + y0
+        b.arc_to(v[0], v[1], v[2], v[3], v[4], x, y)
+    elif upper == "H":
+        b.line_to(v[0] + x0 if rel else v[0], y0)
+    elif upper == "V":
+        b.line_to(x0, v[0] + y0 if rel else v[0])
+    else:
+        if rel:
+            v = [value + (x0 if j % 2 == 0 else y0) for j, value in enumerate(v)]
+        if upper == "M":
+            b.move_to(v[0], v[1])
+            cmd = "l" if rel else "L"  # further pairs are implicit linetos
+        elif upper == "L":
+            b.line_to(v[0], v[1])
+        elif upper == "C":
+            b.cubic_to(*v)
+            cubic = (v[2], v[3])
+        elif upper == "S":
+            c1 = (2 * x0 - last.cubic[0], 2 * y0 - last.cubic[1]) if last.cubic else (x0, y0)
+            b.cubic_to(c1[0], c1[1], *v)
+            cubic = (v[0], v[1])
+        elif upper == "Q":
+            b.quad_to(*v)
+            quad = (v[0], v[1])
+        else:  # T
+            quad = (2 * x0 - last.quad[0], 2 * y0 - last.quad[1]) if last.quad else (x0, y0)
+            b.quad_to(quad[0], quad[1], v[0], v[1])
+    last.cubic, last.quad = cubic, quad
+    return cmd
+
+
 def _parse_path_data(d: str, b: _PathBuilder, piece_size: int = 1 << 18) -> None:
     """Parse SVG path data into ``b``; raise :class:`JeansError` on any error."""
     cmd = ""
-    last_cubic = last_quad = None  # reflected-control bookkeeping for S/s and T/t
+    last = _Reflected()
     first = True
     pending: list[str] = []  # tokens of a command cut by a piece boundary
     awaiting = False  # a command letter was read and its arguments are still due
@@ -247,7 +327,7 @@ def _parse_path_data(d: str, b: _PathBuilder, piece_size: int = 1 << 18) -> None
                 i += 1
                 if cmd in "Zz":
                     b.close()
-                    last_cubic = last_quad = None
+                    last.cubic = last.quad = None
                     cmd = ""
                     continue
                 awaiting = True
@@ -256,66 +336,14 @@ def _parse_path_data(d: str, b: _PathBuilder, piece_size: int = 1 << 18) -> None
             if not is_last and n - i < 7:  # maybe cut: finish it with the next piece
                 pending = tokens[i:]
                 break
-            upper = cmd.upper()
-            rel = cmd.islower()
-            x0, y0 = b.x, b.y
             awaiting = False
-            if upper == "A":
-                try:
-                    rx, ry, rot = float(tokens[i]), float(tokens[i + 1]), float(tokens[i + 2])
-                    large, i = _take_flag(tokens, i + 3)
-                    sweep, i = _take_flag(tokens, i)
-                    x, y = float(tokens[i]), float(tokens[i + 1])
-                    i += 2
-                except (ValueError, IndexError):
-                    raise JeansError(f"malformed path data: expected 7 arc parameters after {cmd!r}") from None
-                if rel:
-                    x, y = x + x0, y + y0
-                b.arc_to(rx, ry, rot, large, sweep, x, y)
-                last_cubic = last_quad = None
-                continue
-            k = _ARITY[upper]
-            try:
-                v = [float(t) for t in tokens[i : i + k]]
-            except ValueError:
-                bad = _bad_token(tokens[i : i + k])
-                if bad:
-                    raise JeansError(f"malformed path data: unexpected {bad[:20]!r}") from None
-                v = []
-            if len(v) != k:
-                raise JeansError(f"malformed path data: expected {k} numbers after {cmd!r}")
-            i += k
-            if upper == "H":
-                b.line_to(v[0] + x0 if rel else v[0], y0)
-                last_cubic = last_quad = None
-                continue
-            if upper == "V":
-                b.line_to(x0, v[0] + y0 if rel else v[0])
-                last_cubic = last_quad = None
-                continue
-            if rel:
-                v = [value + (x0 if j % 2 == 0 else y0) for j, value in enumerate(v)]
-            if upper == "M":
-                b.move_to(v[0], v[1])
-                cmd = "l" if rel else "L"  # further pairs are implicit linetos
-                last_cubic = last_quad = None
-            elif upper == "L":
-                b.line_to(v[0], v[1])
-                last_cubic = last_quad = None
-            elif upper == "C":
-                b.cubic_to(*v)
-                last_cubic, last_quad = (v[2], v[3]), None
-            elif upper == "S":
-                c1 = (2 * x0 - last_cubic[0], 2 * y0 - last_cubic[1]) if last_cubic else (x0, y0)
-                b.cubic_to(c1[0], c1[1], *v)
-                last_cubic, last_quad = (v[0], v[1]), None
-            elif upper == "Q":
-                b.quad_to(*v)
-                last_cubic, last_quad = None, (v[0], v[1])
-            else:  # T
-                q = (2 * x0 - last_quad[0], 2 * y0 - last_quad[1]) if last_quad else (x0, y0)
-                b.quad_to(q[0], q[1], v[0], v[1])
-                last_cubic, last_quad = None, q
+            if cmd in "Aa":
+                v, i = _arc_arguments(tokens, i, cmd)
+            else:
+                k = _ARITY[cmd.upper()]
+                v = _numbers(tokens[i : i + k], k, cmd)
+                i += k
+            cmd = _draw(b, cmd, v, last)
     if awaiting:
         raise JeansError(f"malformed path data: {cmd!r} has no arguments")
 

@@ -36,8 +36,9 @@ from jeanscv.clicks import ObjectClicks
 from jeanscv.errors import JeansError
 
 from .consensus import border_shares, iou, spans_width
+from .grabcut import run_grabcut
 from .masks import MORPH_FRACTION, disk, downscale, fill_holes, outer_contour, resize, shape_for
-from .photo import Segmentation, _run_grabcut, _validate_image
+from .photo import Segmentation, _validate_image
 
 #: Long side (pixels) of the copy the clicks are segmented on.
 WORKING_SIZE = 480
@@ -304,7 +305,7 @@ def _seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, r
     if not (has_fg and has_bg) or min(labels.shape) < 4:
         return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
     try:
-        return _run_grabcut(rgb, labels, _ITERATIONS)
+        return run_grabcut(rgb, labels, _ITERATIONS)
     except JeansError:
         return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
 

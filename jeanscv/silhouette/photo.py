@@ -3,10 +3,10 @@
 Public API: :func:`segment` (photo -> :class:`Segmentation`), :func:`hypotheses` (auto's
 hypotheses of a scene, which a click session reuses) and :func:`clean_mask`.
 
-One topic in about 630 lines: the methods (threshold, GrabCut and its refinement), auto's
-hypotheses and choice, which call the methods, and :func:`segment`, which calls both; the
-scene and its measures (:mod:`.scene`), the consensus (:mod:`.consensus`) and the masks'
-helpers (:mod:`.masks`) already live apart.
+Here: the threshold method, auto's hypotheses and choice, and :func:`segment`, which
+calls them. GrabCut and its refinement live in :mod:`.grabcut`, the scene and its
+measures in :mod:`.scene`, the consensus in :mod:`.consensus` and the masks' helpers in
+:mod:`.masks`.
 
 Arrays: images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8``; masks are
 ``(H, W) bool`` with True on the object. Contours are ``(N, 2) float64`` ``(x, y)`` in
@@ -42,6 +42,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 from jeanscv.options import SILHOUETTE_METHODS
 
+from .grabcut import HYPOTHESIS_ITERATIONS, grabcut, grabcut_coarse_best, grabcut_or_none, refine
 from .masks import (
     FULL_FRACTION,
     MIN_AREA_FRACTION,
@@ -50,7 +51,6 @@ from .masks import (
     border_contact,
     clean,
     clean_mask,
-    disk,
     downscale,
     fills_frame,
     outer_contour,
@@ -58,22 +58,12 @@ from .masks import (
     rim_fraction,
     shape_for,
 )
-from .scene import Scene, spectral_saliency
+from .scene import Scene
 
 #: :func:`segment`'s methods: the named ones, and ``mask`` (a given mask, cleaned).
 METHODS = (*SILHOUETTE_METHODS, "mask")
 
-_COARSE_ITERATIONS = 5  # GrabCut iterations of the first pass
-# auto's hypotheses are cut on the scene's small copy (scene.HYPOTHESIS_SIZE) with fewer
-# iterations than the first pass. Two instead of three save 15% and leave the real
-# photos' mean IoU as it is, but lose a low-contrast synthetic photo (IoU 0.85).
-_HYPOTHESIS_ITERATIONS = 3
-# A colour GrabCut scoring this high is not second-guessed by the texture variant,
-# which saves a third of GrabCut's time: on 48 synthetic photos the texture variant
-# only ever won against colour scores under 0.77.
-_CONFIDENT_SCORE = 0.8
 _BLUR_MARGIN = 0.02  # texture-blurred thresholds must beat sharp ones by this score
-_REFINE_MODEL_STEP = 4  # the refinement learns its colour models on a copy this many times smaller
 
 
 @dataclass
@@ -175,183 +165,6 @@ def _threshold(rgb: np.ndarray, threshold: float | None, scene: Scene) -> tuple[
     return best[0], {**best[1], "scores": scores}
 
 
-def _run_grabcut(image: np.ndarray, labels: np.ndarray, iterations: int, rect=None, models=None) -> np.ndarray:
-    """cv2.grabCut from a label mask (or a rect); returns the bool object mask.
-
-    ``models``: a (background, foreground) pair of (1, 65) float64 colour models. Zero
-    ones are filled with the models the cut learns; given ones are kept fixed (one
-    graph cut with them, ``iterations`` unused).
-    """
-    background, foreground = models if models is not None else (np.zeros((1, 65)), np.zeros((1, 65)))
-    labels = labels.copy()
-    if rect is not None:
-        mode = cv2.GC_INIT_WITH_RECT
-    elif background.any() and foreground.any():
-        mode = cv2.GC_EVAL_FREEZE_MODEL
-    else:
-        mode = cv2.GC_INIT_WITH_MASK
-    cv2.setRNGSeed(2023)  # grabCut's k-means draws from OpenCV's global RNG: be repeatable
-    try:
-        cv2.grabCut(image, labels, rect, background, foreground, iterations, mode)
-    except cv2.error as error:  # e.g. no foreground or no background samples
-        raise JeansError("grabcut could not separate an object") from error
-    return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
-
-
-def _band_labels(mask: np.ndarray, band: int) -> np.ndarray:
-    """GrabCut labels that leave only a band of ``band`` pixels either side of
-    ``mask``'s boundary to decide: probable subject or background there as ``mask``
-    says, definite elsewhere."""
-    eight = mask.astype(np.uint8)
-    kernel = disk(band)
-    near = cv2.dilate(eight, kernel).astype(bool) & ~cv2.erode(eight, kernel).astype(bool)
-    labels = np.where(mask, cv2.GC_FGD, cv2.GC_BGD).astype(np.uint8)
-    labels[near & mask] = cv2.GC_PR_FGD
-    labels[near & ~mask] = cv2.GC_PR_BGD
-    return labels
-
-
-def _seed_labels(scene: Scene, scale: str) -> np.ndarray | None:
-    """GrabCut labels from the border model and the saliency map.
-
-    prior = likelihood x (0.5 + 0.5 saliency); probable foreground where it exceeds its
-    Otsu threshold (at least 0.25), eroded by a pixel; the border ring is definite
-    background except on the seeds (objects may leave the frame); probable background
-    elsewhere. None when there is no seed.
-    """
-    prior = scene.likelihood[scale] * (0.5 + 0.5 * spectral_saliency(scene.rgb))
-    prior8 = np.clip(prior * 255, 0, 255).astype(np.uint8)
-    otsu, _ = cv2.threshold(prior8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    seed = (prior8 > max(float(otsu), 0.25 * 255)).astype(np.uint8)
-    # Edge pixels mix object and background colours: keep them out of the object model.
-    seed = cv2.erode(seed, disk(1)).astype(bool)
-    if not seed.any() or seed.all():
-        return None
-    labels = np.full(seed.shape, cv2.GC_PR_BGD, np.uint8)
-    labels[seed] = cv2.GC_PR_FGD
-    labels[scene.ring & ~seed] = cv2.GC_BGD
-    return labels
-
-
-def _grabcut_coarse(scene: Scene, variant: str, rect=None, hypothesis: bool = False) -> np.ndarray | None:
-    """One GrabCut at coarse resolution, cleaned; None if it cannot start.
-
-    Variants: "colour" (seeds and cut on the image), "texture" (on the texture-blurred
-    image, where regions differing in mean colour under a texture separate) and "rect"
-    (``rect`` = (x, y, w, h) in coarse pixels). ``hypothesis``: cut the scene's small
-    copy (:meth:`Scene.hypothesis`) and return the mask upsampled to coarse size.
-    """
-    if variant == "rect":
-        labels = np.zeros(scene.rgb.shape[:2], np.uint8)
-        return clean(_run_grabcut(scene.rgb, labels, _COARSE_ITERATIONS, rect=rect))
-    scale = "fine" if variant == "colour" else "texture"
-    labels = _seed_labels(scene, scale)
-    if labels is None:
-        return None
-    image = scene.rgb if scale == "fine" else scene.images["texture"]
-    if not hypothesis:
-        return clean(_run_grabcut(image, labels, _COARSE_ITERATIONS))
-    small = scene.hypothesis_size
-    cut = _run_grabcut(
-        resize(image, small, cv2.INTER_AREA), resize(labels, small, cv2.INTER_NEAREST), _HYPOTHESIS_ITERATIONS
-    )
-    return scene.from_hypothesis(cut)
-
-
-def _refine(
-    rgb: np.ndarray, coarse: np.ndarray, scene: Scene, variant: str, source_width: int | None = None
-) -> np.ndarray:
-    """Redo a coarse GrabCut mask at working resolution in a band around its boundary.
-
-    Pixels farther than ~1.5 source pixels from the upsampled boundary keep their label
-    (definite); the band is re-labelled by a short GrabCut on the bounding box crop.
-    ``source_width``: width of the image the mask was cut at (default: coarse), which
-    sets how uncertain its boundary is.
-    """
-    width, height = scene.working_size
-    upsampled = resize(coarse.astype(np.float32), (width, height), cv2.INTER_LINEAR) >= 0.5
-    if scene.factor <= 1.0 or not upsampled.any():
-        return upsampled
-    band = max(2, int(np.ceil(1.5 * width / (source_width or scene.size[0]))))
-    rows, cols = np.nonzero(upsampled)
-    y0, y1 = max(rows.min() - 2 * band, 0), min(rows.max() + 2 * band + 1, height)
-    x0, x1 = max(cols.min() - 2 * band, 0), min(cols.max() + 2 * band + 1, width)
-    labels = _band_labels(upsampled[y0:y1, x0:x1], band)
-    image = rgb[y0:y1, x0:x1]
-    if variant == "texture":
-        image = cv2.GaussianBlur(image, (0, 0), scene.texture_sigma * scene.factor)
-    image = np.ascontiguousarray(image)
-    # The colour models are learnt (k-means and two iterations) on a copy reduced
-    # _REFINE_MODEL_STEP times, and cut once at working size with them: the same
-    # masks within 0.01 IoU on the real and synthetic photos, for a third of the time.
-    step = (max(2, image.shape[1] // _REFINE_MODEL_STEP), max(2, image.shape[0] // _REFINE_MODEL_STEP))
-    models = np.zeros((1, 65)), np.zeros((1, 65))
-    refined = upsampled.copy()
-    try:
-        _run_grabcut(resize(image, step, cv2.INTER_AREA), resize(labels, step, cv2.INTER_NEAREST), 2, models=models)
-        refined[y0:y1, x0:x1] = _run_grabcut(image, labels, 1, models=models)
-    except JeansError:  # one class missing from the crop: keep the coarse answer
-        return upsampled
-    return clean(refined)
-
-
-def _grabcut_coarse_best(scene: Scene, rect_work=None, hypothesis: bool = False) -> tuple[str, np.ndarray, dict]:
-    """GrabCut variants at coarse resolution: ``(chosen variant, its mask, variant
-    scores)``. With ``rect_work`` (x, y, w, h, working pixels) only the rect variant
-    runs, else "colour" and, unless colour scored at least ``_CONFIDENT_SCORE``,
-    "texture". ``hypothesis``: cut on the scene's small copy (see :func:`_grabcut_coarse`),
-    and the texture variant only where colour found nothing or the scene is scored at
-    its texture scale: elsewhere it never won (18 real and 96 synthetic photos give the
-    same masks without it) and cost up to 0.7 s on a real photo."""
-    if rect_work is not None:
-        x, y, w, h = (v / scene.factor for v in rect_work)
-        rect = (int(np.floor(x)), int(np.floor(y)), max(2, int(np.ceil(w))), max(2, int(np.ceil(h))))
-        jobs = {"rect": dict(rect=rect)}
-    else:
-        jobs = {"colour": {}, "texture": {}}
-    variants = {}
-    for variant, kwargs in jobs.items():
-        if (
-            variant == "texture"
-            and "colour" in variants
-            and (variants["colour"][1]["score"] >= _CONFIDENT_SCORE or (hypothesis and scene.scale == "fine"))
-        ):
-            continue
-        try:
-            mask = _grabcut_coarse(scene, variant, hypothesis=hypothesis, **kwargs)
-        except JeansError:
-            mask = None
-        if mask is not None and mask.any():
-            variants[variant] = (mask, scene.features(mask))
-    if not variants:
-        raise JeansError("no object found to segment")
-    chosen = max(variants, key=lambda name: variants[name][1]["score"])
-    return chosen, variants[chosen][0], {name: features["score"] for name, (_, features) in variants.items()}
-
-
-def _grabcut(rgb: np.ndarray, scene: Scene, rect_work=None) -> tuple[np.ndarray, dict]:
-    """The best GrabCut variant (:func:`_grabcut_coarse_best`) refined at working resolution."""
-    chosen, coarse, scores = _grabcut_coarse_best(scene, rect_work)
-    refined = _refine(rgb, coarse, scene, chosen)
-    info = {
-        "variant": chosen,
-        "coarse_shape": scene.rgb.shape[:2],
-        "variant_scores": scores,
-        "features": scene.features(refined),
-    }
-    if rect_work is not None:
-        info["rect"] = tuple(int(v) for v in rect_work)
-    return refined, info
-
-
-def _grabcut_or_none(image: np.ndarray, labels: np.ndarray, iterations: int) -> np.ndarray | None:
-    """:func:`_run_grabcut` for hypotheses that may fail: None instead of an error."""
-    try:
-        return _run_grabcut(image, labels, iterations)
-    except JeansError:
-        return None
-
-
 class _Inline:
     """An executor that runs each job at once on the calling thread."""
 
@@ -382,7 +195,7 @@ def _hypothesis_pool() -> ThreadPoolExecutor | _Inline:
 def _grabcut_hypothesis(scene: Scene) -> tuple[str, np.ndarray | None]:
     """(variant, coarse mask or None) of the border-colour GrabCut hypothesis."""
     try:
-        variant, mask, _ = _grabcut_coarse_best(scene, hypothesis=True)
+        variant, mask, _ = grabcut_coarse_best(scene, hypothesis=True)
     except JeansError:
         return "colour", None
     return variant, mask
@@ -412,7 +225,7 @@ def hypotheses(rgb: np.ndarray, scene: Scene, details: dict) -> Hypotheses:
     with _hypothesis_pool() as pool:
         grabcut_job = pool.submit(_grabcut_hypothesis, scene)
         cut_jobs = {
-            name: pool.submit(_grabcut_or_none, small, labels, _HYPOTHESIS_ITERATIONS)
+            name: pool.submit(grabcut_or_none, small, labels, HYPOTHESIS_ITERATIONS)
             for name, labels in labelings.items()
         }
         coarse: dict[str, np.ndarray] = {}
@@ -477,7 +290,7 @@ def _auto(rgb: np.ndarray, scene: Scene, details: dict) -> tuple[np.ndarray, str
     if winner == "threshold":
         return found.threshold_mask, "threshold"
     variant = found.grabcut_variant if winner == "grabcut" else "colour"
-    return _refine(rgb, usable[winner], scene, variant, source_width=scene.hypothesis_size[0]), "grabcut"
+    return refine(rgb, usable[winner], scene, variant, source_width=scene.hypothesis_size[0]), "grabcut"
 
 
 # ----------------------------------------------------------------------------- public
@@ -542,6 +355,41 @@ def segment(
     background could not be told apart. Alpha and user masks may fill the frame, short
     of all of it (the user said so).
     """
+    arguments = _check_arguments(method, image, threshold, rect, mask, working_size)
+    height, width = arguments.rgb.shape[:2]
+    size = shape_for((height, width), int(working_size))
+    details: dict = {"working_shape": (size[1], size[0])}
+    if method == "auto":
+        method = _auto_given(arguments, details)
+    photo = method in ("auto", "threshold", "grabcut")
+    given = _given_silhouette(method, arguments)
+    if given is not None:
+        working, used = clean(_coverage(given, size)), method
+    else:
+        rgb = downscale(arguments.rgb, size)
+        working, used = _segment_photo(rgb, method, arguments.threshold, arguments.rect, width / size[0], details)
+    _check_area(working, photo, details)
+    full = _full_resolution(working, given, size, (width, height))
+    contour = outer_contour(working, (width / size[0], height / size[1]))
+    return Segmentation(mask=full, method=used, contour=contour, details=details)
+
+
+@dataclass(frozen=True)
+class _Arguments:
+    """:func:`segment`'s image and options, checked: ``rgb`` ``(H, W, 3)`` and ``alpha``
+    ``(H, W)`` or None, the given ``mask`` ``(H, W)`` and ``rect`` (clipped to the
+    image) or None."""
+
+    rgb: np.ndarray
+    alpha: np.ndarray | None
+    threshold: float | None
+    mask: np.ndarray | None
+    rect: tuple[int, int, int, int] | None
+
+
+def _check_arguments(method: str, image: np.ndarray, threshold, rect, mask, working_size) -> _Arguments:
+    """:func:`segment`'s arguments checked one after the other: JeansError for the
+    first bad one."""
     if method not in METHODS:
         raise JeansError(f"unknown segmentation method {method!r} (choose from {', '.join(METHODS)})")
     rgb, alpha = _validate_image(image)
@@ -555,42 +403,52 @@ def segment(
         if not 0 <= threshold <= 255:  # also rejects NaN
             raise JeansError("threshold must be a number between 0 and 255")
     height, width = rgb.shape[:2]
-    size = shape_for((height, width), int(working_size))
-    details: dict = {"working_shape": (size[1], size[0])}
     user_mask = None
     if mask is not None:
         user_mask = np.asarray(mask)
         if user_mask.shape != (height, width):
             raise JeansError(f"mask shape {user_mask.shape} does not match the image ({height}, {width})")
     rect_full = _validate_rect(rect, (height, width)) if rect is not None else None
+    return _Arguments(rgb, alpha, threshold, user_mask, rect_full)
 
-    if method == "auto":
-        if user_mask is not None:
-            method, details["reason"] = "mask", "a mask was given"
-        elif rect_full is not None:
-            method, details["reason"] = "grabcut", "a rect was given"
-        elif alpha is not None and _alpha_meaningful(alpha):
-            method, details["reason"] = "alpha", "the alpha channel is a silhouette"
 
-    photo = method in ("auto", "threshold", "grabcut")
-    given = None  # (H, W) uint8 0..255: a full-resolution silhouette handed to us
+def _auto_given(arguments: _Arguments, details: dict) -> str:
+    """What auto uses when the caller handed it the object: ``mask`` or ``rect``
+    when given, the alpha channel when it is a silhouette, else ``"auto"``; the
+    reason goes to ``details``."""
+    if arguments.mask is not None:
+        details["reason"] = "a mask was given"
+        return "mask"
+    if arguments.rect is not None:
+        details["reason"] = "a rect was given"
+        return "grabcut"
+    if arguments.alpha is not None and _alpha_meaningful(arguments.alpha):
+        details["reason"] = "the alpha channel is a silhouette"
+        return "alpha"
+    return "auto"
+
+
+def _given_silhouette(method: str, arguments: _Arguments) -> np.ndarray | None:
+    """The full-resolution ``(H, W) uint8`` 0..255 silhouette that methods ``alpha`` and
+    ``mask`` are handed (JeansError where it is missing or empty); None for the
+    photo methods."""
     if method == "alpha":
+        alpha = arguments.alpha
         if alpha is None:
             raise JeansError("method 'alpha' needs an RGBA image")
         if not (alpha < 128).any():
             raise JeansError("alpha channel is fully opaque: no silhouette in it")
-        given = alpha
-        used = "alpha"
-    elif method == "mask":
-        if user_mask is None:
+        return alpha
+    if method == "mask":
+        if arguments.mask is None:
             raise JeansError("method 'mask' needs a mask")
-        given = binarise(user_mask).astype(np.uint8) * 255
-        used = "mask"
-    if given is not None:
-        working = clean(_coverage(given, size))
-    else:
-        working, used = _segment_photo(downscale(rgb, size), method, threshold, rect_full, width / size[0], details)
+        return binarise(arguments.mask).astype(np.uint8) * 255
+    return None
 
+
+def _check_area(working: np.ndarray, photo: bool, details: dict) -> None:
+    """JeansError unless the working mask holds a plausible object: not under 0.5% of
+    the image, not all of it, and for the photo methods not filling the frame."""
     fraction = float(working.mean())
     details["area_fraction"] = round(fraction, 4)
     if fraction < MIN_AREA_FRACTION:
@@ -598,6 +456,13 @@ def segment(
     if working.all() or (photo and fills_frame(working)):
         raise JeansError("the object fills the whole frame: no background to separate it from")
 
+
+def _full_resolution(
+    working: np.ndarray, given: np.ndarray | None, size: tuple[int, int], full_size: tuple[int, int]
+) -> np.ndarray:
+    """The working mask (``size``, ``(width, height)``) upsampled to ``full_size``, a
+    given silhouette deciding the pixels along its boundary."""
+    width, height = full_size
     # Linear upsampling of 0/255 then >= 128 is the "resize the float mask, threshold
     # at 0.5" rule in a quarter of the memory (matters for 24-MP photos).
     soft = resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR)
@@ -607,8 +472,7 @@ def segment(
         # the cleaned boundary (where the upsampled mask is neither 0 nor 255) use it.
         band = (soft > 0) & (soft < 255)
         full[band] = given[band] >= 128
-    contour = outer_contour(working, (width / size[0], height / size[1]))
-    return Segmentation(mask=full, method=used, contour=contour, details=details)
+    return full
 
 
 def _segment_photo(
@@ -630,7 +494,7 @@ def _segment_photo(
         mask, info = _threshold(rgb, threshold, scene)
     else:
         rect_work = None if rect_full is None else tuple(v / factor for v in rect_full)
-        mask, info = _grabcut(rgb, scene, rect_work)
+        mask, info = grabcut(rgb, scene, rect_work)
     details[method] = info
     return mask, method
 

@@ -21,7 +21,7 @@ from .masks import MIN_AREA_FRACTION, border_contact, border_ring, clean, disk, 
 
 COARSE_SIZE = 320  # long side of the scene's copy, and of GrabCut's first pass (graph cuts are superlinear)
 # auto's hypotheses are cut on a smaller copy (and with fewer iterations, see
-# jeanscv.silhouette.photo): GrabCut costs about 370 ms at 320 px and 5 iterations on
+# jeanscv.silhouette.grabcut): GrabCut costs about 370 ms at 320 px and 5 iterations on
 # real photos, 190 ms at 240 px and 3, and only the winner needs a sharp boundary (it
 # is refined at working resolution). At 160 px the hypotheses got too coarse to judge
 # (real photos: mean IoU 0.63 at 320, 0.62 at 240, 0.59 at 160; two synthetic photos
