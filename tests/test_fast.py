@@ -305,6 +305,35 @@ def test_kernels_cached_looks_for_the_step_loop_index(tmp_path, monkeypatch):
     assert kernels_cached(tmp_path) is True
 
 
+def test_the_second_compiling_process_compiles_what_a_fit_calls():
+    """ahead's kernels only help a first run if their types are exactly the ones the
+    objective passes: a fit's signatures must include them."""
+    from numba import njit
+
+    from jeanscv._fast import ahead
+    from jeanscv._fast import objective as kernels
+
+    _fast.Objective(JEANS, "all", {"coverage": 1.0})(JEANS.template[None], np.ones((64, 64)))
+    # Compiling the objective afresh (its cached copy names no callee) has numba
+    # resolve each phase it calls, which records that phase's signature.
+    njit(kernels.objective.py_func).compile(kernels.objective.signatures[0])
+    for kernel, signature in ahead.later_phases():
+        assert signature in kernel.signatures, kernel.__name__
+
+
+def test_one_second_compiling_process_per_cache_folder(tmp_path, monkeypatch):
+    from jeanscv._fast import ahead
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    launched = []
+    monkeypatch.setattr(ahead.subprocess, "Popen", lambda command, **_: launched.append(command))
+    assert ahead.start() and not ahead.start()
+    assert launched == [[sys.executable, "-m", "jeanscv._fast.ahead"]]
+    (lock,) = tmp_path.rglob("ahead.lock")
+    os.utime(lock, (0, 0))  # left by a killed process
+    assert ahead.start() and len(launched) == 2
+
+
 def test_command_line_announces_a_first_compilation(tmp_path, run_cli, monkeypatch):
     from conftest import write_silhouette_png
 

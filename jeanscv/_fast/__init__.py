@@ -234,7 +234,8 @@ _warming: threading.Thread | None = None
 
 
 def warm_up() -> None:
-    """Load numba and the cached kernels in a background thread.
+    """Load numba and the cached kernels in a background thread (and, before they are
+    cached, start :mod:`ahead`'s second compiling process).
 
     The first call of any numba function in a process sets up LLVM (about half a
     second, as long again as importing numba); started before decoding and
@@ -244,6 +245,10 @@ def warm_up() -> None:
     global _warming
     if _warming is not None or not fast_available():
         return
+    if not kernels_cached():  # a first run: a second core compiles what this one reaches last
+        from . import ahead
+
+        ahead.start()
 
     def load() -> None:
         from ..adam import BatchAdam
