@@ -64,25 +64,20 @@ def later_phases() -> list:
     from ..garments import JEANS
     from ..terms import STROKE_HALF_WIDTH
     from . import Objective, scratch
-    from .objective import _overlap_sums, _stroke_gradient
+    from .objective import Bands, Crossings, _overlap_sums, _stroke_gradient
     from .raster import BAND_COLUMNS, OUTLINE_POINTS
 
     size, half_width, n, rows = 256, float(STROKE_HALF_WIDTH), JEANS.num_vertices, 8
     target = Objective(JEANS, "all", {"coverage": 1.0})._target(np.ones((size, size)), half_width)
     work = scratch(size, half_width, n)
-    floats, ints, flags = np.empty(n), np.empty(n, np.int64), np.empty(n, np.bool_)
-    per_row, square = np.empty((n, rows), np.int64), np.empty((n, n))
-    labels, union = np.empty((2, n), np.bool_), np.zeros((2, 4))
-    outline, crossings = np.empty((OUTLINE_POINTS, 2)), np.empty(16)
+    per_edge, per_row, square = np.empty(n, np.int64), np.empty((n, rows), np.int64), np.empty((n, n))
+    bands = Bands(per_edge, per_row, per_edge, per_row, per_row, np.empty(n, np.bool_))
+    crossings = Crossings(np.empty(16), np.empty(16, np.int64), np.empty(16))
+    labels, union, outline = np.empty((2, n), np.bool_), np.zeros((2, 4)), np.empty((OUTLINE_POINTS, 2))
     vertices = np.ascontiguousarray(JEANS.template, dtype=np.float64)
-    band = (ints, per_row, ints, per_row, per_row, flags)  # row_start, col_start, band_count, band_lo, band_hi, x_major
-    gradient = (
-        (vertices, target, work, -4.5, 260.5, 3, union, np.empty(2), floats, square, square, labels)
-        + band
-        + (outline, outline, np.empty((rows, BAND_COLUMNS + 1)), crossings, np.empty(16, np.int64), crossings)
-        + (np.zeros((n, 2)),)
-    )
-    overlaps = (target, work) + band + (labels, union, square, square)
+    gradient = (vertices, target, work, -4.5, 260.5, 3, union, np.empty(2), np.empty(n), square, square, labels)
+    gradient += (bands, outline, outline, np.empty((rows, BAND_COLUMNS + 1)), crossings, np.zeros((n, 2)))
+    overlaps = (target, work, bands, labels, union, square, square)
     return [
         (kernel, tuple(typeof(argument) for argument in arguments))
         for kernel, arguments in ((_stroke_gradient, gradient), (_overlap_sums, overlaps))

@@ -82,6 +82,27 @@ class Scratch(NamedTuple):
     overlap_rows: np.ndarray  # (N, rows) bool, kept false: the band rows holding overlaps
 
 
+class Bands(NamedTuple):
+    """Each edge's stroke band for one candidate (:func:`_stroke_bands` fills it): band
+    cell ``(r, c)`` of edge ``e`` is canvas ``major = row_start[e] + r``, ``minor =
+    col_start[e, r] + c``, x and y swapped when ``x_major[e]``."""
+
+    row_start: np.ndarray  # (N,) int64
+    col_start: np.ndarray  # (N, rows) int64
+    count: np.ndarray  # (N,) int64, rows of each band
+    lo: np.ndarray  # (N, rows) int64: the first column the stroke covers in each row
+    hi: np.ndarray  # (N, rows) int64: one past the last
+    x_major: np.ndarray  # (N,) bool
+
+
+class Crossings(NamedTuple):
+    """Where an edge crosses the grid lines (raster.cut_edge's work arrays)."""
+
+    ts: np.ndarray  # float64, the crossings' parameters along the edge
+    axes: np.ndarray  # int64, which grid lines
+    lines: np.ndarray  # float64, which lines
+
+
 def band_scratch_rows(size: int, half_width: float) -> int:
     """Rows enough for any stroke band on a ``size`` canvas: segments are clipped to
     the canvas plus ``half_width + 2`` and a band adds ``half_width`` and a row each side."""
@@ -167,18 +188,16 @@ def _sorted_cells(touched, listed, counts, r, cols):
 
 
 @njit(cache=True)
-def _fill_terms(
-    v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, diff, touched, listed, counts, wind, cell_grad,
-    prefix, col0, ts, axes, lines,
-):  # fmt: skip
+def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, scratch, col0, crossings):
     """``(coverage, inside)`` of one candidate; adds their weighted gradient to ``grad``.
 
     ``s_rows``: ``(C, C + 1)`` prefix sums of ``S`` along rows. Work is O(pieces + rows
     of the bounding box): the pieces list the cells they touch (``touched``, ``listed``,
     ``counts``; :func:`raster.scatter_edge`), and the cells between two listed ones hold
     the same winding: where it is 0 or 1 they take the run's sums, with no gradient.
-    ``diff``, ``touched`` and ``counts`` are all zero before and after.
+    ``scratch.diff``, ``.touched`` and ``.counts`` are all zero before and after.
     """
+    touched, listed, counts = scratch.touched, scratch.listed, scratch.counts
     size = s.shape[0]
     n = v.shape[0]
     y_lo, y_hi, x_lo, x_hi = math.inf, -math.inf, math.inf, -math.inf
@@ -193,7 +212,7 @@ def _fill_terms(
     area = not_on_body = uncovered_in = s_window = 0.0
     if rows and cols:
         area, not_on_body, uncovered_in, s_window = _fill_sums(
-            v, s, s_rows, oy, ox, rows, cols, diff, touched, listed, counts, wind, col0, ts, axes, lines
+            v, s, s_rows, oy, ox, rows, cols, scratch, col0, crossings
         )
     total = max(s_total, _EPS)
     uncovered = (s_total - s_window) + uncovered_in
@@ -208,18 +227,17 @@ def _fill_terms(
         return coverage, inside
     d_uncovered = w_cov * -2.0 * (0.5 - uncovered / total) / total
     d_area = -w_inside * not_on_body / (area_den * area_den) if area >= _EPS else 0.0
-    _fill_gradient(
-        v, s, oy, ox, rows, cols, d_uncovered, d_area, w_inside / area_den, grad, touched, listed, counts, wind,
-        cell_grad, prefix, col0, ts, axes, lines,
-    )  # fmt: skip
+    _fill_gradient(v, s, oy, ox, rows, cols, d_uncovered, d_area, w_inside / area_den, grad, scratch, col0, crossings)
     return coverage, inside
 
 
 @njit(cache=True)
-def _fill_sums(v, s, s_rows, oy, ox, rows, cols, diff, touched, listed, counts, wind, col0, ts, axes, lines):
+def _fill_sums(v, s, s_rows, oy, ox, rows, cols, scratch, col0, crossings):
     """The polygon's pieces scattered on its ``rows x cols`` window at ``(ox, oy)`` and
     summed along each row: ``(area, not_on_body, uncovered_in, s_window)``, the sums of
-    the fill terms inside the window; each listed cell's winding kept in ``wind``."""
+    the fill terms inside the window; each listed cell's winding kept in ``scratch.wind``."""
+    diff, touched, listed, counts, wind = scratch.diff, scratch.touched, scratch.listed, scratch.counts, scratch.wind
+    ts, axes, lines = crossings
     size = s.shape[0]
     n = v.shape[0]
     area = not_on_body = uncovered_in = s_window = 0.0
@@ -267,12 +285,12 @@ def _fill_sums(v, s, s_rows, oy, ox, rows, cols, diff, touched, listed, counts, 
 
 
 @njit(cache=True)
-def _fill_gradient(
-    v, s, oy, ox, rows, cols, d_uncovered, d_area, d_not_on_body, grad, touched, listed, counts, wind, cell_grad,
-    prefix, col0, ts, axes, lines,
-):  # fmt: skip
+def _fill_gradient(v, s, oy, ox, rows, cols, d_uncovered, d_area, d_not_on_body, grad, scratch, col0, crossings):
     """Adds the fill terms' gradient to ``grad``: dL/dW per listed cell and its prefix
     sums along the row, gathered back along the pieces of each edge; clears the lists."""
+    touched, listed, counts, wind = scratch.touched, scratch.listed, scratch.counts, scratch.wind
+    cell_grad, prefix = scratch.cell_grad, scratch.prefix
+    ts, axes, lines = crossings
     size = s.shape[0]
     n = v.shape[0]
     for r in range(rows):
@@ -326,13 +344,13 @@ def _pixel(row_start, row_col_start, x_major, r, c):
 
 
 @njit(cache=True)
-def _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y):
+def _band_alpha(band_wind, bands, k, x, y):
     """Stroke ``k``'s alpha at canvas pixel ``(x, y)``, read from its band."""
-    major, minor = (x, y) if x_major[k] else (y, x)
-    r = major - row_start[k]
-    if r < 0 or r >= band_count[k]:
+    major, minor = (x, y) if bands.x_major[k] else (y, x)
+    r = major - bands.row_start[k]
+    if r < 0 or r >= bands.count[k]:
         return 0.0
-    c = minor - col_start[k, r]
+    c = minor - bands.col_start[k, r]
     if c < 0 or c >= BAND_COLUMNS:
         return 0.0
     return min(abs(band_wind[k, r, c]), 1.0)
@@ -366,15 +384,17 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     rows_limit = _rows_limit(vertices, half_width, low, high, finite)
 
     crossings = 4 * (size + 4 * int(margin) + 16)
-    ts, axes, lines = np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings)
+    cuts = Crossings(np.empty(crossings), np.empty(crossings, np.int64), np.empty(crossings))
     col0 = np.empty(max(size, rows_limit), np.int64)
     band_prefix = np.empty((rows_limit, BAND_COLUMNS + 1))
-    col_start = np.empty((n, rows_limit), np.int64)
-    band_lo = np.empty((n, rows_limit), np.int64)
-    band_hi = np.empty((n, rows_limit), np.int64)
-    row_start = np.empty(n, np.int64)
-    band_count = np.empty(n, np.int64)
-    x_major = np.empty(n, np.bool_)
+    bands = Bands(
+        np.empty(n, np.int64),
+        np.empty((n, rows_limit), np.int64),
+        np.empty(n, np.int64),
+        np.empty((n, rows_limit), np.int64),
+        np.empty((n, rows_limit), np.int64),
+        np.empty(n, np.bool_),
+    )
     labels = np.empty((2, n), np.bool_)  # the open edges, the closed edges (one array: no views in loops)
     for e in range(n):
         labels[0, e], labels[1, e] = target.is_open[e], target.is_closed[e]
@@ -396,39 +416,15 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
             continue
         _shape_terms(v, target, need_grad, terms[b], g_v)
         coverage, inside = _fill_terms(
-            v,
-            s,
-            s_rows,
-            s_total,
-            weights[COVERAGE],
-            weights[INSIDE],
-            g_v,
-            need_grad,
-            scratch.diff,
-            scratch.touched,
-            scratch.listed,
-            scratch.counts,
-            scratch.wind,
-            scratch.cell_grad,
-            scratch.prefix,
-            col0,
-            ts,
-            axes,
-            lines,
+            v, s, s_rows, s_total, weights[COVERAGE], weights[INSIDE], g_v, need_grad, scratch, col0, cuts
         )
         terms[b, COVERAGE] = coverage
         terms[b, INSIDE] = inside
 
-        _stroke_bands(
-            v, target, scratch, low, high, rows_limit, outline, col_start, row_start, band_count, x_major,
-            band_lo, band_hi, areas, on_body, ts, axes, lines,
-        )  # fmt: skip
+        _stroke_bands(v, target, scratch, low, high, rows_limit, bands, outline, areas, on_body, cuts)
         # unions of the open and the closed edges: excess where their strokes stack past 1
         union = np.zeros((2, 4))  # per union: on-body sum, area, excess, excess on body
-        overlaps = _overlap_sums(
-            target, scratch, row_start, col_start, band_count, band_lo, band_hi, x_major, labels, union, overlap,
-            pair_excess,
-        )  # fmt: skip
+        overlaps = _overlap_sums(target, scratch, bands, labels, union, overlap, pair_excess)
         for e in range(n):
             for u in range(2):
                 if labels[u, e]:
@@ -448,12 +444,11 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
         terms[b, INTER] = inter
 
         if not (need_grad and (weights[OPEN] != 0.0 or weights[CLOSED] != 0.0 or weights[INTER] != 0.0)):
-            _clear_mask(scratch.mask, size, n, row_start, col_start, band_count, band_lo, band_hi, x_major)
+            _clear_mask(scratch.mask, size, bands)
             continue
         _stroke_gradient(
-            v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels,
-            row_start, col_start, band_count, band_lo, band_hi, x_major, outline, g_outline, band_prefix,
-            ts, axes, lines, g_v,
+            v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels, bands,
+            outline, g_outline, band_prefix, cuts, g_v,
         )  # fmt: skip
     weighted_totals(terms, weights, totals)
 
@@ -520,16 +515,15 @@ def _shape_terms(v, target, need_grad, terms, g_v):
 
 
 @njit(cache=True)
-def _stroke_bands(
-    v, target, scratch, low, high, rows_limit, outline, col_start, row_start, band_count, x_major,
-    band_lo, band_hi, areas, on_body, ts, axes, lines,
-):  # fmt: skip
+def _stroke_bands(v, target, scratch, low, high, rows_limit, bands, outline, areas, on_body, crossings):
     """Every edge's stroke on its band (alphas in ``scratch.band_wind``, each stroke's
     area and on-body sum), and each stroke's bit in the pixel mask; a pixel that a second
     stroke reaches flags its row in ``scratch.overlap_rows``: overlaps are the only pixels
     where the strokes interact."""
     n = v.shape[0]
     s, mask, band_diff, band_wind = target.s, scratch.mask, scratch.band_diff, scratch.band_wind
+    row_start, col_start, band_count, band_lo, band_hi, x_major = bands
+    ts, axes, lines = crossings
     size = s.shape[0]
     for e in range(n):
         f = (e + 1) % n
@@ -585,11 +579,10 @@ def _stroke_bands(
 
 
 @njit(cache=True)
-def _overlap_sums(
-    target, scratch, row_start, col_start, band_count, band_lo, band_hi, x_major, labels, union, overlap, pair_excess
-):
+def _overlap_sums(target, scratch, bands, labels, union, overlap, pair_excess):
     """The overlaps' pixels, strokes and alphas listed in ``scratch``; the unions' excess
     into ``union[:, 2:]`` and each counted pair's overlap and excess. Returns how many."""
+    row_start, col_start, band_count, band_lo, band_hi, x_major = bands
     n = row_start.shape[0]
     s, pair, mask, band_wind = target.s, target.pair, scratch.mask, scratch.band_wind
     size = s.shape[0]
@@ -624,11 +617,7 @@ def _overlap_sums(
                     if (bits >> k) & 1:
                         present[count] = k
                         count += 1
-                    here[k] = (
-                        _band_alpha(band_wind, row_start, col_start, band_count, x_major, k, x, y)
-                        if (bits >> k) & 1
-                        else 0.0
-                    )
+                    here[k] = _band_alpha(band_wind, bands, k, x, y) if (bits >> k) & 1 else 0.0
                 for u in range(2):
                     stacked = 0.0
                     for a in range(count):
@@ -652,15 +641,16 @@ def _overlap_sums(
 
 @njit(cache=True)
 def _stroke_gradient(
-    v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels,
-    row_start, col_start, band_count, band_lo, band_hi, x_major, outline, g_outline, band_prefix,
-    ts, axes, lines, g_v,
+    v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels, bands,
+    outline, g_outline, band_prefix, crossings, g_v,
 ):  # fmt: skip
     """Adds the gradient of the weighted stroke terms (open, closed, inter) to ``g_v``,
     clearing the pixel mask on the way."""
     n = v.shape[0]
     s, pair, weights = target.s, target.pair, target.weights
     mask, band_diff, band_wind = scratch.mask, scratch.band_diff, scratch.band_wind
+    row_start, col_start, band_count, band_lo, band_hi, x_major = bands
+    ts, axes, lines = crossings
     size = s.shape[0]
     # d total / d alpha = per-edge constant + per-pixel parts
     union_weight = np.array([-weights[OPEN], weights[CLOSED]])
@@ -703,9 +693,8 @@ def _stroke_gradient(
                 band_diff[e, r, c] = lone + lone_s * s[y, x] if w > 0 else -(lone + lone_s * s[y, x])
     # ... then the overlaps' own values
     _overlap_values(
-        target, scratch, overlaps, row_start, col_start, x_major, labels, base, union_weight, union_d_den, union_den,
-        pair_den, pair_d_den,
-    )  # fmt: skip
+        target, scratch, overlaps, bands, labels, base, union_weight, union_d_den, union_den, pair_den, pair_d_den
+    )
     for e in range(n):
         f = (e + 1) % n
         gpx, gpy, gqx, gqy = stroke_band_backward(
@@ -737,11 +726,11 @@ def _stroke_gradient(
 
 @njit(cache=True)
 def _overlap_values(
-    target, scratch, overlaps, row_start, col_start, x_major, labels, base, union_weight, union_d_den, union_den,
-    pair_den, pair_d_den,
-):  # fmt: skip
+    target, scratch, overlaps, bands, labels, base, union_weight, union_d_den, union_den, pair_den, pair_d_den
+):
     """dL/dW at each overlap's cells of every stroke there, into the bands' spent
     difference buffers (``scratch.band_diff``), where a lone stroke's value was written."""
+    row_start, col_start, x_major = bands.row_start, bands.col_start, bands.x_major
     n = row_start.shape[0]
     s, pair, weights = target.s, target.pair, target.weights
     band_diff, band_wind = scratch.band_diff, scratch.band_wind
@@ -790,8 +779,10 @@ def weighted_totals(terms, weights, totals):
 
 
 @njit(cache=True)
-def _clear_mask(mask, size, n, row_start, col_start, band_count, band_lo, band_hi, x_major):
+def _clear_mask(mask, size, bands):
     """Zero the pixel mask where the candidate's strokes set it."""
+    row_start, col_start, band_count, band_lo, band_hi, x_major = bands
+    n = row_start.shape[0]
     for e in range(n):
         for r in range(band_count[e]):
             for c in range(band_lo[e, r], band_hi[e, r]):
