@@ -528,23 +528,9 @@ def _stroke_bands(v, target, scratch, low, high, rows_limit, bands, outline, are
     for e in range(n):
         f = (e + 1) % n
         row_start[e], band_count[e], x_major[e], empty = stroke_band(
-            v[e, 0],
-            v[e, 1],
-            v[f, 0],
-            v[f, 1],
-            target.half_width,
-            low,
-            high,
-            rows_limit,
-            target.cos_r,
-            target.sin_r,
-            outline,
-            col_start[e],
-            band_diff[e],
-            ts,
-            axes,
-            lines,
-        )
+            v[e, 0], v[e, 1], v[f, 0], v[f, 1], target.half_width, low, high, rows_limit, target.cos_r, target.sin_r,
+            outline, col_start[e], band_diff[e], ts, axes, lines,
+        )  # fmt: skip
         bit = mask.dtype.type(1 << e)
         areas[e] = on_body[e] = 0.0
         along_x = x_major[e]
@@ -698,26 +684,9 @@ def _stroke_gradient(
     for e in range(n):
         f = (e + 1) % n
         gpx, gpy, gqx, gqy = stroke_band_backward(
-            v[e, 0],
-            v[e, 1],
-            v[f, 0],
-            v[f, 1],
-            target.half_width,
-            low,
-            high,
-            row_start[e],
-            band_count[e],
-            target.cos_r,
-            target.sin_r,
-            outline,
-            g_outline,
-            col_start[e],
-            band_diff[e],
-            band_prefix,
-            ts,
-            axes,
-            lines,
-        )
+            v[e, 0], v[e, 1], v[f, 0], v[f, 1], target.half_width, low, high, row_start[e], band_count[e],
+            target.cos_r, target.sin_r, outline, g_outline, col_start[e], band_diff[e], band_prefix, ts, axes, lines,
+        )  # fmt: skip
         g_v[e, 0] += gpx
         g_v[e, 1] += gpy
         g_v[f, 0] += gqx
