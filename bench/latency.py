@@ -112,13 +112,15 @@ def upscaled_folder(folder: Path, count: int, synthetic: int) -> None:
     from PIL import Image
 
     folder.mkdir(parents=True)
-    names = sorted(p for p in PHOTOS.glob("*.jpg") if not p.name.endswith(".mask.png"))[:count]
+    names = sorted(
+        p for p in PHOTOS.glob("*.*") if p.suffix.lower() in (".jpg", ".jpeg", ".png") and ".mask." not in p.name
+    )[:count]
     for path in names:
         with Image.open(path) as image:
             image = image.convert("RGB")
             scale = (12e6 / (image.width * image.height)) ** 0.5
             image.resize((round(image.width * scale), round(image.height * scale)), Image.LANCZOS).save(
-                folder / path.name, quality=92
+                folder / f"{path.stem}.jpg", quality=92
             )
     make_photos(folder, range(synthetic), 12.0)
 
