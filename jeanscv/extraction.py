@@ -3,6 +3,8 @@ plugin's method), split into separate objects, picked by clicks, each framed on 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .errors import JeansError
@@ -12,6 +14,9 @@ from .options import OBJECTS
 from .silhouettes import Silhouette
 from .silhouettes import box_of as _box_of
 
+if TYPE_CHECKING:  # segmentation imports OpenCV, on first use
+    from .silhouette.photo import SharedHypotheses
+
 
 def extract_silhouette(
     image: np.ndarray,
@@ -20,11 +25,14 @@ def extract_silhouette(
     threshold: float | None = None,
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
+    shared: SharedHypotheses | None = None,
 ) -> Silhouette:
     """Segment the main object of a photo ``(H, W, 3|4)`` uint8 and frame it.
 
     ``method``: ``auto``, ``alpha``, ``threshold``, ``grabcut`` (see the README);
-    ``mask``: a user-supplied ``(H, W)`` mask, used instead of segmentation.
+    ``mask``: a user-supplied ``(H, W)`` mask, used instead of segmentation; ``shared``:
+    a :class:`~jeanscv.silhouette.photo.SharedHypotheses` that auto's hypotheses are
+    cut into, or taken from (a click session of the same photo shares them).
     """
     from .plugins import is_plugin_silhouette_method, segment_with
     from .silhouette.photo import segment
@@ -33,7 +41,8 @@ def extract_silhouette(
         # A plugin extractor takes the image alone: threshold and rect are built-in options.
         result = segment_with(method, image)
     else:
-        result = segment(image, "mask" if mask is not None else method, threshold=threshold, rect=rect, mask=mask)
+        method = "mask" if mask is not None else method
+        result = segment(image, method, threshold=threshold, rect=rect, mask=mask, shared=shared)
     canvas, framing = frame_mask(result.mask)
     return Silhouette(
         result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details)
@@ -70,6 +79,7 @@ def extract_silhouettes(
     threshold: float | None = None,
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
+    shared: SharedHypotheses | None = None,
 ) -> list[Silhouette]:
     """The objects of a photo ``(H, W, 3|4)`` uint8, each segmented and framed on its own.
 
@@ -86,7 +96,10 @@ def extract_silhouettes(
     ones. The clicked objects come first, in order; with ``"all"`` the automatic objects
     that they do not cover follow. With a user ``mask``, ``points`` pick the mask's pieces
     instead. Every silhouette's ``details`` holds its ``box`` (x, y, w, h); a clicked
-    one also its ``clicks`` and ``point`` (its first positive click).
+    one also its ``clicks`` and ``point`` (its first positive click). ``shared``: a
+    :class:`~jeanscv.silhouette.photo.SharedHypotheses` for auto's hypotheses of this
+    photo (cut once for the automatic subject and the click session; the results are
+    the same without it).
     """
     if objects not in OBJECTS:
         raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
@@ -97,7 +110,7 @@ def extract_silhouettes(
         return _mask_objects(pixels, method, objects, points, threshold, rect, mask)
     wanted = object_clicks(points, background_points, clicks)
     if not wanted:
-        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect)
+        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
         found = split_objects(main.mask) if objects == "all" else []
         if len(found) <= 1:
             main.details["box"] = list(_box_of(main))
@@ -105,13 +118,15 @@ def extract_silhouettes(
         return [_object_silhouette(obj, main) for obj in found]
     from .clicks import Clicks
     from .silhouette.interactive import ClickSession
+    from .silhouette.photo import SharedHypotheses
 
     height, width = pixels.shape[:2]
     Clicks(tuple(wanted)).check((width, height))
-    chosen = clicked_silhouettes(ClickSession(pixels), wanted)
+    shared = shared or SharedHypotheses()  # the session's hypotheses are auto's too
+    chosen = clicked_silhouettes(ClickSession(pixels, shared=shared), wanted)
     if objects == "all":
         try:
-            main = extract_silhouette(pixels, method, threshold=threshold, rect=rect)
+            main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
         except JeansError:
             return chosen
         covered = np.zeros(pixels.shape[:2], bool)

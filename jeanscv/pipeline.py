@@ -29,6 +29,7 @@ from .silhouettes import Silhouette, load_mask, read_svg, silhouette_from_alpha
 
 if TYPE_CHECKING:  # decoding imports Pillow, on first use
     from .io.image import LoadedImage
+    from .silhouette.photo import SharedHypotheses
 
 
 def load_image(path: str | os.PathLike, max_pixels: int = 100_000_000, raw_half_size: bool = False) -> LoadedImage:
@@ -80,11 +81,17 @@ def fit(
 
 
 def prepare_input(
-    source: str | os.PathLike | np.ndarray, options: JeansOptions | None = None, **overrides: Any
+    source: str | os.PathLike | np.ndarray,
+    options: JeansOptions | None = None,
+    *,
+    shared: SharedHypotheses | None = None,
+    **overrides: Any,
 ) -> tuple[list[Silhouette], str, np.ndarray | None, LoadedImage | None]:
     """Decode and segment an input: ``(silhouettes, kind, pixels, loaded_image)``.
 
     ``options`` (or the defaults) with ``overrides`` (:class:`JeansOptions`' names) say how.
+    ``shared``: a :class:`~jeanscv.silhouette.photo.SharedHypotheses` that keeps auto's
+    hypotheses of the photo for a click session of ``pixels`` (a server clicks on it next).
     Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``,
     ``background_points`` and ``clicks`` are pixels of the photo as displayed, also for a
     RAW file decoded at half size; ``clicks`` may be a clicks file); silhouette drawings
@@ -133,6 +140,7 @@ def prepare_input(
         threshold=options.threshold,
         rect=options.rect,
         mask=mask,
+        shared=shared,
     )
     return silhouettes, "photo", pixels, loaded
 

@@ -94,6 +94,33 @@ def test_the_same_clicks_give_the_same_mask():
     assert np.array_equal(first, again) and np.array_equal(first, warm.segment(*clicks).mask)
 
 
+def test_auto_and_a_session_cut_the_hypotheses_once_with_the_same_results(monkeypatch):
+    from jeanscv.silhouette import photo
+
+    image = figure()[0]
+    alone = photo.segment(image)
+    clicks = ([BODY_CLICK, DISC_CLICK], [HEAD_CLICK])
+    expected = session().segment(*clicks).mask
+    cuts = []
+    hypotheses = photo.hypotheses
+    monkeypatch.setattr(photo, "hypotheses", lambda *args: cuts.append(1) or hypotheses(*args))
+    shared = photo.SharedHypotheses()
+    together = photo.segment(image, shared=shared)
+    clicked = ClickSession(image, shared=shared).segment(*clicks).mask
+    assert len(cuts) == 1
+    assert np.array_equal(together.mask, alone.mask) and np.array_equal(together.contour, alone.contour)
+    assert json.dumps(together.details) == json.dumps(alone.details)
+    assert np.array_equal(clicked, expected)
+    # The session first, then auto: still one cut, the same subject.
+    shared = photo.SharedHypotheses()
+    ClickSession(image, shared=shared)
+    assert json.dumps(photo.segment(image, shared=shared).details) == json.dumps(alone.details)
+    assert len(cuts) == 2
+    # Another photo (here: another working size) is cut anew, not given these.
+    smaller = photo.segment(image, working_size=160, shared=shared)
+    assert len(cuts) == 3 and json.dumps(smaller.details) == json.dumps(photo.segment(image, working_size=160).details)
+
+
 def test_session_refuses_clicks_it_cannot_use():
     with pytest.raises(JeansError, match="at least one positive click"):
         session().segment([], [HEAD_CLICK])

@@ -166,6 +166,18 @@ def test_good_photo_then_clicks_then_downloads(client):
     assert list(server_temp(client).iterdir()) == []
 
 
+def test_auto_and_the_click_session_cut_the_hypotheses_once(client, monkeypatch):
+    from jeanscv.silhouette import photo as segmentation
+
+    cuts = []
+    hypotheses = segmentation.hypotheses
+    monkeypatch.setattr(segmentation, "hypotheses", lambda *args: cuts.append(1) or hypotheses(*args))
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    point = inside_point(scene().masks[1])
+    clicked = client.post(f"/api/photos/{first['photo']}/render", json={"objects": [{"positive": [point]}]})
+    assert clicked.status_code == 200 and len(cuts) == 1
+
+
 def test_svg_silhouette_and_png_drawing(client):
     text = b'<svg xmlns="http://www.w3.org/2000/svg" width="512" height="256" viewBox="0 0 512 256">'
     text += b'<rect x="200" y="20" width="100" height="220" fill="#000"/></svg>'

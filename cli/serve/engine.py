@@ -6,8 +6,10 @@ photo's outputs. The HTTP layer (:mod:`.app`) never calls :mod:`jeanscv` itself.
 
 Clicks become silhouettes in :func:`silhouettes_from_clicks`: the photo keeps one
 ``ClickSession`` (the library's ``extract_silhouettes(clicks=...)`` makes a new one per
-call, half a second on a 12-MP photo), and each object is segmented and framed as the
-library does it, so the page's result is the command line's. A folder's outputs are made
+call, half a second on a 12-MP photo), made with the hypotheses that the automatic
+segmentation cut when the photo was opened (cut once:
+:class:`~jeanscv.silhouette.photo.SharedHypotheses`), and each object is segmented and
+framed as the library does it, so the page's result is the command line's. A folder's outputs are made
 by the command line's own worker, which reads the clicks saved beside the photo.
 
 Coordinates sent to and from the page are pixels of the photo as displayed (x right,
@@ -22,6 +24,7 @@ import json
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -38,6 +41,9 @@ from jeanscv.silhouettes import box_of
 from .. import worker
 from ..discover import Job
 from ..extras import optimisation_gif, svg_document
+
+if TYPE_CHECKING:
+    from jeanscv.silhouette.photo import SharedHypotheses
 
 #: Long side of the interactive preview: clicks on 12-MP photos stay quick.
 PREVIEW_SIDE = 1280
@@ -132,7 +138,8 @@ class Photo:
     ``pixels``: the decoded image at full size (None for an SVG); ``size``: (width,
     height) as displayed, the frame of every coordinate; ``preview``: the picture the
     page shows, long side at most :data:`PREVIEW_SIDE`; ``auto``: the automatic
-    silhouettes at full size.
+    silhouettes at full size; ``shared``: the automatic segmentation's hypotheses, held
+    for the click session (which lets them go).
     """
 
     name: str
@@ -144,6 +151,7 @@ class Photo:
     auto: list
     auto_error: str = ""
     original_jpeg: bytes | None = None
+    shared: SharedHypotheses | None = None
     _session: object | None = None
     lock: threading.Lock = field(default_factory=threading.Lock)
     fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
@@ -163,14 +171,18 @@ class Photo:
         total += sum(masks.values())
         if self._session is not None:
             total += self.pixels.nbytes // 8  # working copies and cached masks
+        if self.shared is not None:
+            total += self.shared.nbytes
         return total
 
     def session(self):
-        """The click session (made on first use: about half a second). Hold ``lock``."""
+        """The click session (made on first use: a few tenths of a second with the
+        automatic segmentation's hypotheses). Hold ``lock``."""
         if self._session is None:
             from jeanscv.silhouette.interactive import ClickSession
 
-            self._session = ClickSession(self.pixels)
+            self._session = ClickSession(self.pixels, shared=self.shared)
+            self.shared = None  # the session holds what it needs
         return self._session
 
 
@@ -202,7 +214,10 @@ def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """
-    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels)
+    from jeanscv.silhouette.photo import SharedHypotheses
+
+    shared = SharedHypotheses()  # auto's hypotheses, cut once for the click session too
+    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels, shared=shared)
     if kind == "silhouette":
         first = silhouettes[0]
         size = tuple(int(v) for v in first.framing.image_size)
@@ -211,7 +226,7 @@ def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
     height, width = pixels.shape[:2]
     auto = [_compact(s) for s in silhouettes]
     preview = _downscale(pixels, PREVIEW_SIDE)
-    return Photo(name, kind, pixels, loaded, (width, height), preview, auto)
+    return Photo(name, kind, pixels, loaded, (width, height), preview, auto, shared=shared)
 
 
 def _compact(silhouette):

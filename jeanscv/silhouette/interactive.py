@@ -38,7 +38,7 @@ from jeanscv.errors import JeansError
 from .consensus import border_shares, iou, spans_width
 from .grabcut import run_grabcut
 from .masks import MORPH_FRACTION, disk, downscale, fill_holes, outer_contour, resize, shape_for
-from .photo import Segmentation, _validate_image
+from .photo import Segmentation, SharedHypotheses, _validate_image
 
 #: Long side (pixels) of the copy the clicks are segmented on.
 WORKING_SIZE = 480
@@ -90,30 +90,28 @@ Point = tuple[float, float]
 class ClickSession:
     """One photo, segmented again after each click (in the spirit of Segment Anything's
     predictor): the constructor does the work that does not depend on the clicks
-    (downscaling, auto's hypotheses); :meth:`segment` takes one object's clicks.
+    (downscaling, auto's hypotheses: shared with :func:`photo.segment` through a
+    :class:`~jeanscv.silhouette.photo.SharedHypotheses`); :meth:`segment` takes one
+    object's clicks.
 
     Results are remembered by click sequence, so adding a click to a sequence already
     segmented costs one step; the same clicks always give the same mask.
     """
 
-    def __init__(self, image: np.ndarray, *, working_size: int = WORKING_SIZE):
-        from .photo import hypotheses
-        from .scene import Scene
-
+    def __init__(self, image: np.ndarray, *, working_size: int = WORKING_SIZE, shared: SharedHypotheses | None = None):
+        """``shared``: auto's hypotheses of this photo, when :func:`photo.segment` has cut
+        them already (or will: they are cut once, by whichever asks first)."""
         rgb, _ = _validate_image(image)
         self.shape = rgb.shape[:2]
         height, width = self.shape
         self.size = shape_for(self.shape, working_size)  # (w, h) of the working copy
         self.rgb = downscale(rgb, self.size)
         scene_rgb = downscale(rgb, shape_for(self.shape, SCENE_SIZE))
-        try:
-            found = hypotheses(scene_rgb, Scene(scene_rgb), {})
-            self._hypotheses = {
-                name: resize(mask.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
-                for name, mask in found.coarse.items()
-            }
-        except JeansError:
-            self._hypotheses = {}
+        found = (shared or SharedHypotheses()).of(scene_rgb).found
+        self._hypotheses = {
+            name: resize(mask.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
+            for name, mask in (found.coarse.items() if found is not None else ())
+        }
         self._cache: dict[tuple, np.ndarray] = {}
         self._seed_radius = max(1, round(_SEED_FRACTION * min(self.size)))
         self._graph = _ClickGraph(self.rgb)
