@@ -344,7 +344,9 @@ def _main(
         f"({why}), device {device} ({backend}), preset {options.preset}, {options.iterations} iterations"
     )
     if backend == "fast" and kernels_cached() is False:
-        progress.info("compiling the fit kernels for this installation, once (about 30 s); later runs load them")
+        progress.info(
+            "compiling the fit kernels for this installation, once (about 25 s on two free cores); later runs load them"
+        )
         progress.info(f"(numba keeps them in {kernel_cache_dir()})")
     records = _unprocessed(found, progress)
     outcomes: dict = {}

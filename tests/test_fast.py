@@ -340,7 +340,9 @@ def test_command_line_announces_a_first_compilation(tmp_path, run_cli, monkeypat
     import jeanscv._fast
 
     source = write_silhouette_png(tmp_path / "shape.png")
-    notice = "compiling the fit kernels for this installation, once (about 30 s); later runs load them"
+    notice = (
+        "compiling the fit kernels for this installation, once (about 25 s on two free cores); later runs load them"
+    )
     for cached, shown in ((False, True), (True, False), (None, False)):
         monkeypatch.setattr(jeanscv._fast, "kernels_cached", lambda cached=cached: cached)
         result = run_cli(source, "-o", tmp_path / "out", "--iterations", "2", "--backend", "fast", "--overwrite")
