@@ -16,7 +16,7 @@ from their bands), which are listed, and the gradient's corrections to the value
 lone stroke's cell has are made over that list. Everything costs O(band cells +
 overlaps), not O(canvas).
 
-One topic in about 900 lines: the kernels below call one another inside numba and are
+One topic in about 830 lines: the kernels below call one another inside numba and are
 compiled and cached together (``cache=True`` keys on this file), so they stay in one
 module; the rasterizer they share lives in ``raster.py``.
 """
