@@ -309,11 +309,11 @@ def band_extent(sy, ey, half_width):
 
 
 @njit(cache=True)
-def band_plan(sx, sy, ex, ey, half_width, rows, col_start):
+def band_plan(sx, sy, ex, ey, row_start, rows, col_start):
     """Band placement along y of a (flipped) segment (render._plan_bands): fills
-    ``col_start[:rows]`` with each band row's first column."""
+    ``col_start[:rows]`` with the first column of each band row from ``row_start``
+    (:func:`band_extent`)."""
     y_low, y_high = min(sy, ey), max(sy, ey)
-    row_start = math.floor(y_low - half_width)
     span_y = ey - sy
     slope = (ex - sx) / span_y if abs(span_y) > 1e-9 else 0.0
     for r in range(rows):
@@ -419,7 +419,7 @@ def stroke_band(
     empty = clip[6]
     row_start, own = band_extent(sy, ey, half_width)
     rows = min(own + 1, rows_limit)
-    band_plan(sx, sy, ex, ey, half_width, rows, col_start)
+    band_plan(sx, sy, ex, ey, row_start, rows, col_start)
     if empty:
         return row_start, 0, x_major, True
     # The band's width read from its buffer, not the constant: a literal argument would
