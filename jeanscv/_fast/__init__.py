@@ -250,16 +250,27 @@ def warm_up() -> None:
 
         ahead.start()
 
-    def load() -> None:
-        from ..adam import BatchAdam
-        from ..garments import JEANS
-
-        square = JEANS.template / 16.0
-        kernel = Objective(JEANS, "all", {"coverage": 1.0})
-        kernel(square[None], np.ones((16, 16)), 0.25)
-        kernel.descend(BatchAdam(square[None] / 16.0, 0.01), np.ones((16, 16)), 1, 0.25)
-        polygon_coverage(square, 16, 16)
-        stroke_coverage(square[:1], square[1:2], 16, 16)
-
-    _warming = threading.Thread(target=load, name="jeanscv-warm-up", daemon=True)
+    _warming = threading.Thread(target=load_kernels, name="jeanscv-warm-up", daemon=True)
     _warming.start()
+
+
+def load_kernels() -> None:
+    """Load (or, with an empty cache, compile) every kernel a photo's run calls: the
+    objective, the fit's step loop and the compositing's rasterizers, on tiny inputs."""
+    from ..adam import BatchAdam
+    from ..garments import JEANS
+
+    square = JEANS.template / 16.0
+    kernel = Objective(JEANS, "all", {"coverage": 1.0})
+    kernel(square[None], np.ones((16, 16)), 0.25)
+    kernel.descend(BatchAdam(square[None] / 16.0, 0.01), np.ones((16, 16)), 1, 0.25)
+    load_rasterizers()
+
+
+def load_rasterizers() -> None:
+    """Load (or compile) the rasterizers that compositing calls, on a tiny input."""
+    from ..garments import JEANS
+
+    square = JEANS.template / 16.0
+    polygon_coverage(square, 16, 16)
+    stroke_coverage(square[:1], square[1:2], 16, 16)

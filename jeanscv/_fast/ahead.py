@@ -87,16 +87,11 @@ def later_phases() -> list:
 def compile_later_phases() -> None:
     """Compile (without running) the objective's last phases, then the rasterizers that
     compositing calls."""
-    import numpy as np
-
-    from ..garments import JEANS
-    from . import polygon_coverage, stroke_coverage
+    from . import load_rasterizers
 
     for kernel, signature in later_phases():
         kernel.compile(signature)
-    square = np.ascontiguousarray(JEANS.template, dtype=np.float64) / 16.0
-    polygon_coverage(square, 16, 16)
-    stroke_coverage(square[:1], square[1:2], 16, 16)
+    load_rasterizers()
 
 
 if __name__ == "__main__":
