@@ -33,9 +33,10 @@ import time
 from pathlib import Path
 
 from bench.batch_speed import make_photos, run
+from bench.clicks import SHARED as PHOTOS
+from bench.clicks import photo_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
-PHOTOS = ROOT.parent / "shared" / "real_photos"
 SILHOUETTES = ROOT.parent / "shared" / "silhouettes"
 TARGETS = {
     "first run": "<= 10 s",
@@ -112,15 +113,12 @@ def upscaled_folder(folder: Path, count: int, synthetic: int) -> None:
     from PIL import Image
 
     folder.mkdir(parents=True)
-    names = sorted(
-        p for p in PHOTOS.glob("*.*") if p.suffix.lower() in (".jpg", ".jpeg", ".png") and ".mask." not in p.name
-    )[:count]
-    for path in names:
+    for name, path, _ in photo_pairs([PHOTOS])[:count]:
         with Image.open(path) as image:
             image = image.convert("RGB")
             scale = (12e6 / (image.width * image.height)) ** 0.5
             image.resize((round(image.width * scale), round(image.height * scale)), Image.LANCZOS).save(
-                folder / f"{path.stem}.jpg", quality=92
+                folder / f"{name}.jpg", quality=92
             )
     make_photos(folder, range(synthetic), 12.0)
 
