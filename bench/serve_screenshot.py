@@ -9,6 +9,7 @@ driven by Playwright, on a server bound to 127.0.0.1).
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -18,7 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    out = Path(sys.argv[1] if len(sys.argv) > 1 else ROOT / "docs" / "serve.jpg").resolve()
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("out", nargs="?", type=Path, default=ROOT / "docs" / "serve.jpg", help="a .jpg or .png")
+    out = parser.parse_args().out.resolve()
     env = {**os.environ, "JEANSCV_SCREENSHOT": str(out)}
     test = "tests/test_serve_browser.py::test_drop_click_caption_download"
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", test], cwd=ROOT, env=env)
