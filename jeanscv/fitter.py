@@ -217,21 +217,32 @@ def _prunings(preset: Preset, iterations: int, num_starts: int) -> dict[int, tup
 
 
 @contextmanager
-def _torch_threads(count: int | None, backend: str):
-    """Run with ``count`` torch threads: the fit's tensors are small, and on a few cores
-    thread hand-offs (in index_add above all) cost more than they save. The fast
-    backend is single-threaded and does not touch torch."""
-    if not count or backend != "torch":
+def _torch_settings(threads: int | None, backend: str, device: str):
+    """Torch's settings during a torch fit, restored after it (the fast backend does not
+    touch torch):
+
+    - ``threads`` threads (None: torch's own): the fit's tensors are small, and on a few
+      cores thread hand-offs (in index_add above all) cost more than they save;
+    - off the CPU, torch's deterministic algorithms: CUDA's index_add (the rasterizer's
+      scatter and index_select's backward) sums in any order, so the same seed gave fits
+      up to 0.8 px apart. Measured on an H100 (float32 then): 1.6 s a default fit instead
+      of 1.1 s, and the same vertices every time (tests/test_cuda.py).
+    """
+    if backend != "torch":
         yield
         return
     import torch
 
-    previous = torch.get_num_threads()
-    torch.set_num_threads(count)
+    threads_before, deterministic_before = torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()
+    if threads:
+        torch.set_num_threads(threads)
+    if device != "cpu":
+        torch.use_deterministic_algorithms(True)
     try:
         yield
     finally:
-        torch.set_num_threads(previous)
+        torch.set_num_threads(threads_before)
+        torch.use_deterministic_algorithms(deterministic_before)
 
 
 def fit(
@@ -259,7 +270,7 @@ def fit(
     """
     preset = (get_preset(preset) if isinstance(preset, str) else preset).with_posture(posture)
     backend = resolve_backend(backend, device)
-    with _torch_threads(threads, backend):
+    with _torch_settings(threads, backend, device):
         return _fit(silhouette, preset, garment, iterations, seed, starts, device, backend)
 
 

@@ -272,6 +272,23 @@ def test_device_cuda_without_gpu_is_a_usage_error(tmp_path, run_cli):
     assert not (tmp_path / "a.jeans.png").exists()
 
 
+def test_device_auto_fits_on_the_cpu_without_torch(tmp_path) -> None:
+    """``auto`` is the CPU's fast path, also where CUDA exists (it is faster there), and
+    choosing it imports no torch."""
+    code = (
+        "import sys; from jeanscv.device import resolve_device; print(resolve_device('auto'), 'torch' in sys.modules)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert done.stdout.split() == ["cpu", "False"]
+
+
+def test_unknown_device_is_a_usage_error(tmp_path, run_cli):
+    src = write_silhouette_png(tmp_path / "a.png")
+    result = run_cli(src, "--device", "tpu")
+    assert result.exit_code == 2 and "Traceback" not in result.stderr
+    assert not (tmp_path / "a.jeans.png").exists()
+
+
 def test_list_presets_and_garments(run_cli):
     presets = run_cli("--list-presets")
     assert presets.exit_code == 0
