@@ -141,8 +141,10 @@ def _photo_shading(
 # The noise of a strip depends on where strips start, so this also fixes the bytes.
 _TEXTURE_ROWS = 256
 # Rows of the per-pixel work at a time: windows this small keep their float
-# temporaries in cache and hug the painted pixels (a divisor of _TEXTURE_ROWS).
-_WINDOW_ROWS = 16
+# temporaries in cache and hug the painted pixels (a divisor of _TEXTURE_ROWS). 32
+# rather than 16 halves the windows' per-call overhead: on the 18 shared photos at
+# 12 MP and 4 textured scenes the denim took 0.173 s a photo against 0.185 (64: 0.177).
+_WINDOW_ROWS = 32
 # At least this many empty columns split a window in two (between the legs, say):
 # narrower gaps cost less to compute than another window's per-call overhead.
 _WINDOW_GAP = 128

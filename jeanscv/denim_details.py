@@ -47,16 +47,18 @@ class _Layer:
     def __init__(self, shape: tuple[int, int]) -> None:
         self.ink = np.zeros(shape, np.uint8)
 
-    def lines(self, polylines: list[np.ndarray], width: float, value: float = 1.0) -> None:
-        """Stroke open polylines ``(k, 2)`` ``width`` px wide.
+    def lines(self, polylines: list[np.ndarray] | np.ndarray, width: float, value: float = 1.0) -> None:
+        """Stroke open polylines ``(k, 2)`` ``width`` px wide: a list of them, or an
+        ``(m, k, 2)`` array of ``m`` (stitches come by the hundred: converted in one call).
 
         OpenCV only draws whole-pixel widths, so a thinner stroke is drawn 1 px wide and
         faded by its width, which keeps its ink (area x alpha) right.
         """
-        if polylines:
+        if len(polylines):
+            points = _cv_points(polylines) if isinstance(polylines, np.ndarray) else map(_cv_points, polylines)
             cv2.polylines(
                 self.ink,
-                [_cv_points(p) for p in polylines],
+                list(points),
                 False,
                 round(255 * value * min(width, 1.0)),
                 max(1, round(width)),
@@ -130,13 +132,13 @@ def blur(field: np.ndarray, sigma: float) -> np.ndarray:
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def _dashes(polyline: np.ndarray, dash: float, gap: float, box: tuple[int, int]) -> list[np.ndarray]:
-    """Dash segments ``(2, 2)`` along a polyline ``(k, 2)``, dropping those off the patch
+def _dashes(polyline: np.ndarray, dash: float, gap: float, box: tuple[int, int]) -> np.ndarray:
+    """Dash segments ``(m, 2, 2)`` along a polyline ``(k, 2)``, dropping those off the patch
     ``box = (h, w)`` so a huge polygon does not make OpenCV draw millions of dashes."""
     steps = np.linalg.norm(np.diff(polyline, axis=0), axis=1)
     arc = np.concatenate([[0.0], np.cumsum(steps)])
     if arc[-1] < dash:
-        return []
+        return np.zeros((0, 2, 2))
     starts = np.arange(0.5 * gap, arc[-1] - dash, dash + gap)
     ends = starts + dash
     seg = np.stack(
@@ -153,7 +155,7 @@ def _dashes(polyline: np.ndarray, dash: float, gap: float, box: tuple[int, int])
         & (seg[:, :, 1].max(1) > -dash)
         & (seg[:, :, 1].min(1) < h + dash)
     )
-    return list(seg[keep])
+    return seg[keep]
 
 
 def _offset(polyline: np.ndarray, distance: float) -> np.ndarray:
