@@ -71,7 +71,7 @@ IMPORTS = (
     ("OpenCV", "import cv2"),
     ("the library and command line", "import jeanscv_cli.main, jeanscv.pipeline"),
     ("numba", "import numba"),
-    ("the kernels' module", "import jeanscv._fast.objective"),
+    ("the kernels' module", "import jeanscv._fast.kernels"),
     (
         "loading the cached kernels",
         "from jeanscv._fast import Objective; from jeanscv.garments import JEANS; import numpy as np;"
