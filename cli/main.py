@@ -274,6 +274,9 @@ def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
     PATH may be files, folders (with -r, their subfolders too) and glob patterns.
     How would this thing wear jeans? (Pagurek's jalgorithm, SIGBOVIK 2023.)
     """
+    from .worker import skip_exit_collection
+
+    skip_exit_collection()
     try:
         code = _main(ctx, paths, **kw)
     except KeyboardInterrupt:
