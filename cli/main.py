@@ -310,6 +310,7 @@ def _main(
     """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
+    _start_workers_early(list(paths), jobs)
     from jeanscv._fast import kernel_cache_dir, kernels_cached
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
@@ -355,6 +356,18 @@ def _main(
     outcomes: dict = {}
     pending = _pending(found.jobs, options, overwrite, progress, outcomes)
     return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
+
+
+def _start_workers_early(paths: list[str], jobs: int | None) -> None:
+    """Where the arguments may give several inputs and several workers, start the workers'
+    fork server before anything else (:func:`pool.start_early`): it loads the library
+    and the kernels while this process finds the files."""
+    from .discover import may_name_several
+
+    if (jobs if jobs is not None else os.cpu_count() or 1) > 1 and may_name_several(paths):
+        from .pool import start_early
+
+        start_early()
 
 
 def _check_names(ctx: click.Context, values: dict) -> None:

@@ -261,13 +261,14 @@ def skip_exit_collection() -> None:
     atexit.register(gc.freeze)
 
 
-def init_worker(threads: int) -> None:
-    """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on SIGTERM."""
+def init_worker(threads: int, parent: int | None = None) -> None:
+    """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on
+    SIGTERM and once the run ``parent`` (default: the parent process) is gone."""
     import sys
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
-    stop_with_parent()
+    stop_with_parent(parent)
     reuse_freed_memory()
     skip_exit_collection()
     import cv2
