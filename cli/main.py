@@ -274,11 +274,12 @@ def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
     PATH may be files, folders (with -r, their subfolders too) and glob patterns.
     How would this thing wear jeans? (Pagurek's jalgorithm, SIGBOVIK 2023.)
     """
-    from .worker import skip_exit_collection
+    from .worker import fewer_collections, skip_exit_collection
 
     skip_exit_collection()
     try:
-        code = _main(ctx, paths, **kw)
+        with fewer_collections():
+            code = _main(ctx, paths, **kw)
     except KeyboardInterrupt:
         code = 130
     ctx.exit(code)

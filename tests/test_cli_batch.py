@@ -310,3 +310,16 @@ def test_a_batch_starts_its_workers_fork_server_before_listing_the_files(tmp_pat
         started.clear()
         cli_main._start_workers_early(arguments, jobs)
         assert started == expected, (arguments, jobs)
+
+
+def test_the_command_collects_young_garbage_less_often_and_restores_the_threshold(monkeypatch, run_cli):
+    import gc
+
+    import jeanscv_cli.main as cli_main
+
+    seen = []
+    monkeypatch.setattr(cli_main, "_main", lambda ctx, paths, **kw: seen.append(gc.get_threshold()) or 0)
+    before = gc.get_threshold()
+    assert run_cli("x.png").exit_code == 0
+    assert seen == [(10_000, *before[1:])]
+    assert gc.get_threshold() == before
