@@ -71,7 +71,7 @@ IMPORTS = (
     ("OpenCV", "import cv2"),
     ("the library and command line", "import jeanscv_cli.main, jeanscv.pipeline"),
     ("numba", "import numba"),
-    ("the kernels' module", "import jeanscv._fast.objective"),
+    ("the kernels' module", "import jeanscv._fast.kernels"),
     (
         "loading the cached kernels",
         "from jeanscv._fast import Objective; from jeanscv.garments import JEANS; import numpy as np;"
@@ -82,14 +82,15 @@ IMPORTS = (
     ("scipy.sparse.csgraph", "import scipy.sparse.csgraph"),
 )
 
+# The snippets come as arguments, not by importing this module, whose own imports
+# (numpy and OpenCV, through bench.batch_speed and bench.clicks) would be timed as free.
 _TIMED_IMPORT = (
     "import sys, time\n"
-    "from bench.latency import IMPORTS\n"
-    "count = int(sys.argv[1])\n"
-    "for _, code in IMPORTS[:count]:\n"
+    "*before, timed = sys.argv[1:]\n"
+    "for code in before:\n"
     "    exec(code)\n"
     "began = time.perf_counter()\n"
-    "exec(IMPORTS[count][1])\n"
+    "exec(timed)\n"
     "print(time.perf_counter() - began)\n"
 )
 
@@ -99,9 +100,10 @@ def imports() -> list[tuple[str, float]]:
     figures = []
     for count, (name, _) in enumerate(IMPORTS):
         times = []
+        snippets = [code for _, code in IMPORTS[: count + 1]]
         for _ in range(3):
             done = subprocess.run(
-                [sys.executable, "-c", _TIMED_IMPORT, str(count)], check=True, capture_output=True, text=True, cwd=ROOT
+                [sys.executable, "-c", _TIMED_IMPORT, *snippets], check=True, capture_output=True, text=True, cwd=ROOT
             )
             times.append(float(done.stdout.split()[-1]))
         figures.append((name, statistics.median(times)))

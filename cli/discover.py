@@ -96,6 +96,12 @@ def _walk(folder: Path, recursive: bool) -> list[tuple[str, ...]]:
     return sorted(found)
 
 
+def may_name_several(arguments: list[str]) -> bool:
+    """Whether ``arguments`` may name more than one input: several of them, a folder or a
+    pattern (checked without listing anything)."""
+    return len(arguments) > 1 or any(os.path.isdir(a) or _expand(a) is not None for a in arguments)
+
+
 def _expand(argument: str) -> list[str] | None:
     """Glob matches of ``argument``, sorted; None when it is not a pattern (or exists as named)."""
     if os.path.exists(argument) or not (_GLOB_CHARS & set(argument)):

@@ -274,8 +274,12 @@ def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
     PATH may be files, folders (with -r, their subfolders too) and glob patterns.
     How would this thing wear jeans? (Pagurek's jalgorithm, SIGBOVIK 2023.)
     """
+    from .worker import fewer_collections, skip_exit_collection
+
+    skip_exit_collection()
     try:
-        code = _main(ctx, paths, **kw)
+        with fewer_collections():
+            code = _main(ctx, paths, **kw)
     except KeyboardInterrupt:
         code = 130
     ctx.exit(code)
@@ -307,6 +311,7 @@ def _main(
     """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
+    _start_workers_early(list(paths), jobs)
     from jeanscv._fast import kernel_cache_dir, kernels_cached
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
@@ -352,6 +357,18 @@ def _main(
     outcomes: dict = {}
     pending = _pending(found.jobs, options, overwrite, progress, outcomes)
     return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
+
+
+def _start_workers_early(paths: list[str], jobs: int | None) -> None:
+    """Where the arguments may give several inputs and several workers, start the workers'
+    fork server before anything else (:func:`pool.start_early`): it loads the library
+    and the kernels while this process finds the files."""
+    from .discover import may_name_several
+
+    if (jobs if jobs is not None else os.cpu_count() or 1) > 1 and may_name_several(paths):
+        from .pool import start_early
+
+        start_early()
 
 
 def _check_names(ctx: click.Context, values: dict) -> None:

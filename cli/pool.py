@@ -1,13 +1,22 @@
-"""The ``-j`` worker processes: a pool of spawned workers, and what happens when one dies.
+"""The ``-j`` worker processes: a pool of workers, and what happens when one dies.
 
-Each worker gets its share of the cores (``worker.init_worker``). A worker that dies
-(killed, out of memory, a crash in a C library) breaks the pool, and with it every file
-not yet finished; those run again rather than fail (:func:`run_parallel`).
+On Linux the workers are forked from a fork server that has loaded the library and the
+cached kernels once (:mod:`jeanscv._forkserver`), started as soon as the command line
+says several inputs may come (:func:`start_early`), while the parent finds its files.
+Elsewhere they are spawned, each a fresh interpreter. Each worker gets its share of the
+cores (``worker.init_worker``). A worker that dies (killed, out of memory, a crash in a
+C library) breaks the pool, and with it every file not yet finished; those run again
+rather than fail (:func:`run_parallel`).
+
+A fork server keeps the environment it started with: a process that runs the command
+more than once (tests, an embedding program) gets workers with the environment of the
+first run that started it.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 
 #: Files handed to the pool per worker ahead of their turn: enough that a worker does not
 #: wait for the parent between small files on a busy machine, few enough that the first
@@ -16,7 +25,7 @@ _AHEAD = 32
 
 
 def run_parallel(queue, options, overwrite: bool, workers: int) -> None:
-    """Process the jobs of ``queue`` (a :class:`runs.WorkQueue`) in ``workers`` spawned
+    """Process the jobs of ``queue`` (a :class:`runs.WorkQueue`) in ``workers``
     processes, each with its share of the cores.
 
     A worker that dies (killed, out of memory, a crash in a C library) breaks the pool, and
@@ -41,8 +50,34 @@ def run_parallel(queue, options, overwrite: bool, workers: int) -> None:
         _one_at_a_time(queue, options, overwrite)
 
 
-def _new_pool(workers: int):
+def _context():
+    """The workers' start method: the fork server on Linux, started if it is not running
+    yet; spawn elsewhere (fork is not safe on macOS with its system libraries, and Windows
+    has only spawn), and where the server cannot start (it listens on a Unix socket)."""
     import multiprocessing
+
+    if sys.platform.startswith("linux") and "forkserver" in multiprocessing.get_all_start_methods():
+        from multiprocessing import forkserver
+
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["jeanscv._forkserver"])
+        try:
+            forkserver.ensure_running()
+            return context
+        except Exception:  # noqa: BLE001 - any reason it cannot start: spawned workers need none of it
+            pass
+    return multiprocessing.get_context("spawn")
+
+
+def start_early() -> None:
+    """Start the fork server now (where workers are forked), so that it loads the library
+    and the kernels while the parent is still finding the files; the pool's first worker
+    then forks at once instead of waiting for a fresh interpreter's imports. When no pool
+    comes, the server stops with the parent."""
+    _context()
+
+
+def _new_pool(workers: int):
     from concurrent.futures import ProcessPoolExecutor
 
     from jeanscv._command import worker_init
@@ -50,9 +85,9 @@ def _new_pool(workers: int):
     threads = max(1, (os.cpu_count() or 1) // workers)
     return ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=multiprocessing.get_context("spawn"),
+        mp_context=_context(),
         initializer=worker_init,
-        initargs=(threads,),
+        initargs=(threads, os.getpid()),
     )
 
 

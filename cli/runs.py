@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import select
 import signal
 import stat
 import threading
@@ -142,21 +143,46 @@ def remove_leftovers_in(folder: Path) -> int:
     return len(remove_stale_temporaries(folder, _OutputNames()))
 
 
-def stop_with_parent(interval: float = 1.0) -> None:
-    """In a worker process: SIGTERM itself once its parent is gone.
+def stop_with_parent(parent: int | None = None, interval: float = 1.0) -> None:
+    """In a worker process: SIGTERM itself once the run ``parent`` (default: its parent
+    process) is gone.
 
     ProcessPoolExecutor's workers block reading their next file, and they hold the
     queue's write end themselves, so a parent killed with SIGKILL never wakes them: they
     would sleep forever, holding their memory. SIGTERM stops a worker the usual way (a
-    file in progress removes its temporary file, see ``worker.init_worker``).
+    file in progress removes its temporary file, see ``worker.init_worker``). A worker
+    forked by the fork server is the server's child, and the server lives as long as its
+    workers do, so the run's own process is watched: through a pidfd where there is one
+    (no polling, no confusion with a later process of the same pid), else every
+    ``interval`` seconds.
     """
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent
+    try:
+        handle = os.pidfd_open(parent)
+    except (AttributeError, OSError):  # not Linux 5.3+, or gone already
+        handle = None
 
     def watch() -> None:
-        event = threading.Event()
-        while not event.wait(interval):
-            if os.getppid() != parent:
-                os.kill(os.getpid(), signal.SIGTERM)
-                return
+        if handle is not None:
+            select.select([handle], [], [])  # readable once the parent has exited
+        else:
+            event = threading.Event()
+            while _running(parent) and not event.wait(interval):
+                pass
+        os.kill(os.getpid(), signal.SIGTERM)
 
     threading.Thread(target=watch, name="jeanscv-parent-watch", daemon=True).start()
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists and has not exited (a zombie has)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True  # no /proc: it exists

@@ -6,9 +6,11 @@ picklable and the heavy modules are imported on first use.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -246,14 +248,51 @@ def reuse_freed_memory() -> bool:
         return False
 
 
-def init_worker(threads: int) -> None:
-    """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on SIGTERM."""
+def skip_exit_collection() -> None:
+    """Skip the garbage collections of the interpreter's exit.
+
+    At exit Python collects garbage while it tears the modules down, traversing every
+    object the imports made (numba's typing tables, scipy, numpy): about 0.25 s of CPU at
+    the end of every command and worker, for memory the process is about to return
+    anyway. Frozen objects are left out of every collection; the outputs are written
+    (and their files closed) before exit, and atexit handlers still run.
+    """
+    import atexit
+    import gc
+
+    atexit.register(gc.freeze)
+
+
+@contextlib.contextmanager
+def fewer_collections(threshold: int = 10_000) -> Iterator[None]:
+    """Collect young garbage after ``threshold`` new objects instead of Python's 700.
+
+    A command's imports (numpy, scipy, numba, the library) make some 300,000 objects in a
+    second; with the default threshold that set off about 235 collections, 0.15 s of CPU
+    in a fresh process that handles one 12-MP photo, and 16 collections (0.06 s) with
+    this one. Memory is the same (the peak is the photo's arrays); the threshold is
+    restored afterwards, for a program that runs the command in process.
+    """
+    import gc
+
+    previous = gc.get_threshold()
+    gc.set_threshold(threshold, *previous[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*previous)
+
+
+def init_worker(threads: int, parent: int | None = None) -> None:
+    """Worker process setup: share the cores, leave Ctrl-C to the parent, stop cleanly on
+    SIGTERM and once the run ``parent`` (default: the parent process) is gone."""
     import sys
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
-    stop_with_parent()
+    stop_with_parent(parent)
     reuse_freed_memory()
+    skip_exit_collection()
     import cv2
 
     # OpenCV sizes its thread pool to every core too: N workers would each run

@@ -33,7 +33,7 @@ def load_cli_package() -> None:
 load_cli_package()
 
 
-def worker_init(threads: int) -> None:
+def worker_init(threads: int, parent: int | None = None) -> None:
     """Initializer of the ``-j`` worker processes.
 
     It lives here, not in ``jeanscv_cli``, because unpickling it imports this module,
@@ -42,4 +42,4 @@ def worker_init(threads: int) -> None:
     """
     from jeanscv_cli.worker import init_worker
 
-    init_worker(threads)
+    init_worker(threads, parent)

@@ -451,12 +451,19 @@ def test_svg_with_a_100000_segment_path(tmp_path, run_cli):
 
 @pytest.fixture
 def no_network(monkeypatch):
-    """Any attempt to open a socket fails the test."""
+    """Any attempt to open a network socket fails the test (a Unix-domain one, which the
+    workers' fork server listens on, is no network)."""
+    local = socket.socket
 
     def refuse(*args, **kwargs):
         raise AssertionError("jeanscv tried to open a network connection")
 
-    monkeypatch.setattr(socket, "socket", refuse)
+    def unix_only(family=socket.AF_INET, *args, **kwargs):
+        if family != socket.AF_UNIX:
+            refuse()
+        return local(family, *args, **kwargs)
+
+    monkeypatch.setattr(socket, "socket", unix_only)
     monkeypatch.setattr(socket, "create_connection", refuse)
 
 

@@ -272,3 +272,54 @@ def test_several_inputs_without_j_get_one_worker_per_core_as_memory_allows(monke
     assert cli_main._workers(2, 100) == (2, "-j")
     monkeypatch.setattr(cli_main, "_available_memory", lambda: 3 << 30)
     assert cli_main._workers(None, 100) == (3, "8 cores, memory for 3")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers are forked from a fork server on Linux only")
+def test_the_fork_server_loads_the_library_and_the_cached_kernels_once(compiled_kernels):
+    """What every worker would import and load for its first file is loaded by the fork
+    server before it forks them, and frozen out of the garbage collector's traversals."""
+    code = (
+        "import gc, sys\n"
+        "import jeanscv._forkserver\n"
+        "from jeanscv._fast import objective, raster\n"
+        "loaded = [len(k.overloads) for k in (objective.objective, objective.descend, raster.polygon_coverage_rows)]\n"
+        "print(all(loaded), 'jeanscv_cli.worker' in sys.modules, 'jeanscv.pipeline' in sys.modules,"
+        " gc.get_freeze_count() > 0)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True"] * 4
+
+
+def test_a_batch_starts_its_workers_fork_server_before_listing_the_files(tmp_path, monkeypatch):
+    """Several inputs with more than one worker: the fork server starts first; one input,
+    or -j 1, starts none."""
+    import jeanscv_cli.main as cli_main
+    import jeanscv_cli.pool as pool
+
+    started = []
+    monkeypatch.setattr(pool, "start_early", lambda: started.append(True))
+    (tmp_path / "in").mkdir()
+    for arguments, jobs, expected in (
+        ([str(tmp_path / "in")], 2, [True]),
+        ([str(tmp_path / "a.png"), str(tmp_path / "b.png")], None, [True] if (os.cpu_count() or 1) > 1 else []),
+        ([str(tmp_path / "*.png")], 2, [True]),
+        ([str(tmp_path / "a.png")], 2, []),
+        ([str(tmp_path / "in")], 1, []),
+    ):
+        started.clear()
+        cli_main._start_workers_early(arguments, jobs)
+        assert started == expected, (arguments, jobs)
+
+
+def test_the_command_collects_young_garbage_less_often_and_restores_the_threshold(monkeypatch, run_cli):
+    import gc
+
+    import jeanscv_cli.main as cli_main
+
+    seen = []
+    monkeypatch.setattr(cli_main, "_main", lambda ctx, paths, **kw: seen.append(gc.get_threshold()) or 0)
+    before = gc.get_threshold()
+    assert run_cli("x.png").exit_code == 0
+    assert seen == [(10_000, *before[1:])]
+    assert gc.get_threshold() == before

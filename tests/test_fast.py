@@ -263,6 +263,30 @@ def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
     assert objective_hits >= 1 and descend_hits >= 1 and objective_misses == descend_misses == 0
 
 
+def test_cached_kernels_load_without_numbas_registry_refresh_and_fit_the_same():
+    """The kernels load from the cache without the refresh that imports numba's
+    registries (and scipy.linalg through them), and fit to the same bits as after it."""
+    code = """
+        import sys
+        import numpy as np
+        {refresh}
+        from jeanscv import _fast
+        from jeanscv.fitter import fit
+        from jeanscv.garments import JEANS
+        _fast.load_kernels()
+        refreshed = "numba.np.arraymath" in sys.modules
+        yy, xx = np.mgrid[:256, :256]
+        result = fit(((xx - 128) ** 2 / 3600 + (yy - 128) ** 2 / 8100 < 1).astype(np.float64), "default", JEANS)
+        print(refreshed, result.vertices.tobytes().hex())
+    """
+    numbas = "from numba.core.registry import cpu_target; cpu_target.target_context.refresh()"
+    _fresh(code.format(refresh=""))  # fills the cache if nothing else has
+    light, light_fit = _fresh(code.format(refresh="")).split()
+    full, full_fit = _fresh(code.format(refresh=numbas)).split()
+    assert (light, full) == ("False", "True")
+    assert light_fit == full_fit
+
+
 def test_a_cpu_photo_run_never_imports_torch(tmp_path):
     from PIL import Image
 

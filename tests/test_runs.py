@@ -72,6 +72,21 @@ def children(pid: int) -> list[int]:
     return found
 
 
+def workers(pid: int) -> list[int]:
+    """The ``-j`` workers of the run ``pid``: its spawned children, or its fork server's."""
+    found = []
+    for child in children(pid):
+        try:
+            command = (Path("/proc") / str(child) / "cmdline").read_text()
+        except OSError:
+            continue
+        if "spawn_main" in command:
+            found.append(child)
+        elif "forkserver" in command:
+            found += children(child)
+    return found
+
+
 def alive(pid: int) -> bool:
     """Running (a zombie waiting for a reaper counts as gone)."""
     try:
@@ -104,11 +119,11 @@ def test_sigkill_to_the_parent(tmp_path):
     folder, out, names = make_folder(tmp_path)
     run = jeanscv(folder, "-o", out, "-j", "2", *SLOW)
     assert wait_until(lambda: any_output(out) or run.poll() is not None)
-    workers = children(run.pid)
+    processes = children(run.pid) + workers(run.pid)
     run.kill()
     run.wait()
     # The workers notice within a second or so, and stop; a file in progress leaves nothing.
-    assert wait_until(lambda: not any(alive(pid) for pid in workers), timeout=120), "orphaned workers"
+    assert wait_until(lambda: not any(alive(pid) for pid in processes), timeout=120), "orphaned workers"
     before = assert_valid_outputs(out, finished_outputs(out))
     resume(folder, out, names, before)
 
@@ -119,13 +134,13 @@ def test_sigkill_to_a_worker(tmp_path):
     folder, out, names = make_folder(tmp_path)
     run = jeanscv(folder, "-o", out, "-j", "2", *SLOW)
     assert wait_until(lambda: any_output(out) or run.poll() is not None)
-    workers = [pid for pid in children(run.pid) if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_text()]
-    if workers:
-        os.kill(workers[0], signal.SIGKILL)
+    running = workers(run.pid)
+    assert running
+    os.kill(running[0], signal.SIGKILL)
     _, stderr = run.communicate(timeout=600)
     assert run.returncode == 0, stderr
     assert stderr == ""
-    assert wait_until(lambda: not any(alive(pid) for pid in workers), timeout=120)
+    assert wait_until(lambda: not any(alive(pid) for pid in running), timeout=120)
     assert_valid_outputs(out, names)
 
 

@@ -120,7 +120,7 @@ class Objective:
 
         Totals add only the terms of non-zero weight, as loss.weighted_total does.
         """
-        from .objective import objective
+        from .kernels import objective
 
         vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         silhouette = np.ascontiguousarray(silhouette, dtype=np.float64)
@@ -143,7 +143,7 @@ class Objective:
         """``steps`` Adam steps of ``optimizer`` (:class:`jeanscv.adam.BatchAdam`) on
         ``target`` in one kernel call (:func:`objective.descend`): ``(totals (k, B), params
         after each step (k, B, N, 2))``; ``k < steps``: at step ``k`` every start diverged."""
-        from .objective import descend
+        from .kernels import descend
 
         target = np.ascontiguousarray(target, dtype=np.float64)
         step_sizes, bias2 = optimizer.corrections(steps)
@@ -208,7 +208,7 @@ def polygon_coverage(
 ) -> np.ndarray:
     """Exact coverage of the closed polygon ``vertices`` ``(N, 2)`` on rows ``top ..
     top + rows`` of a ``height x width`` grid (render.polygon_coverage)."""
-    from .raster import polygon_coverage_rows
+    from .kernels import polygon_coverage_rows
 
     rows = height - top if rows is None else rows
     out = np.empty((rows, width), dtype)
@@ -220,7 +220,7 @@ def stroke_coverage(
     start: np.ndarray, end: np.ndarray, height: int = 256, width: int = 256, half_width: float = STROKE_HALF_WIDTH
 ) -> np.ndarray:
     """``(M, height, width)`` stroke alphas of segments ``(M, 2)`` (render.stroke_coverage)."""
-    from .raster import stroke_maps
+    from .kernels import stroke_maps
 
     start = np.ascontiguousarray(start, dtype=np.float64).reshape(-1, 2)
     end = np.ascontiguousarray(end, dtype=np.float64).reshape(-1, 2)
