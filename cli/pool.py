@@ -175,6 +175,7 @@ def _died(job, exc: BaseException):
 def _stop_pool(pool) -> None:
     """Cancel queued files and stop the workers; a worker mid-file removes its temporary file."""
     processes = list(getattr(pool, "_processes", {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         if process.is_alive():
@@ -183,3 +184,9 @@ def _stop_pool(pool) -> None:
         process.join(timeout=10)
         if process.is_alive():
             process.kill()
+    if manager is not None:
+        # The pool's manager thread closes its wake-up pipe as it ends; at the
+        # interpreter's exit concurrent.futures writes to that pipe unless the thread has
+        # ended, and a close between its check and its write printed a traceback
+        # ("Bad file descriptor", Python 3.11). With the workers gone the thread ends at once.
+        manager.join(timeout=10)
