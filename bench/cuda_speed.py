@@ -21,27 +21,16 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from PIL import Image
 
+from bench.fit_speed import SHARED, shapes
 from jeanscv.fitter import fit
-from testkit.synthetic import silhouette_zoo
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
 #: (label, fit options)
 WAYS = (
     ("cuda", {"device": "cuda"}),
     ("cpu fast", {"backend": "fast"}),
     ("cpu torch", {"backend": "torch"}),
 )
-
-
-def shapes(folder: Path) -> dict[str, np.ndarray]:
-    found = {
-        p.stem: np.asarray(Image.open(p).convert("L"), dtype=np.float32) / 255.0
-        for p in sorted(folder.glob("*.png"))
-        if not p.stem.endswith("_paper_result")
-    }
-    return found or silhouette_zoo(["person", "dog", "spider", "blob_a", "kangaroo", "tree", "crab"])
 
 
 def timed(silhouette: np.ndarray, repeats: int, **options) -> tuple[float, float]:

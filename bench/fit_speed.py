@@ -27,10 +27,11 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"
 BACKENDS = ("fast", "torch")
 
 
-def shapes() -> dict[str, np.ndarray]:
+def shapes(folder: Path = SHARED) -> dict[str, np.ndarray]:
+    """The silhouettes ``folder/*.png`` (the paper's figures left out), else the synthetic zoo."""
     found = {
         p.stem: np.asarray(Image.open(p), dtype=np.float32) / 255.0
-        for p in sorted(SHARED.glob("*.png"))
+        for p in sorted(folder.glob("*.png"))
         if not p.stem.endswith("_paper_result")
     }
     return found or silhouette_zoo(["person", "dog", "spider", "blob_a", "kangaroo", "tree", "crab"])

@@ -37,7 +37,6 @@ from bench.clicks import SHARED as PHOTOS
 from bench.clicks import photo_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
-SILHOUETTES = ROOT.parent / "shared" / "silhouettes"
 TARGETS = {
     "first run": "<= 10 s",
     "fresh process": "<= 1.2 s",
