@@ -365,7 +365,8 @@ def _start_workers_early(paths: list[str], jobs: int | None) -> None:
     and the kernels while this process finds the files."""
     from .discover import may_name_several
 
-    if (jobs if jobs is not None else os.cpu_count() or 1) > 1 and may_name_several(paths):
+    # _workers as for two inputs: whether this run would have several workers for several.
+    if may_name_several(paths) and _workers(jobs, 2)[0] > 1:
         from .pool import start_early
 
         start_early()
