@@ -7,6 +7,7 @@ picklable and the heavy modules are imported on first use.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import time
@@ -248,6 +249,7 @@ def reuse_freed_memory() -> bool:
         return False
 
 
+@functools.cache  # once a process: the command may run several times in one (tests, a program)
 def skip_exit_collection() -> None:
     """Skip the garbage collections of the interpreter's exit.
 
