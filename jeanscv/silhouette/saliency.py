@@ -125,22 +125,11 @@ def _minimax(count: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray) -
     """All-pairs minimax path costs (the largest step on the best path), by Kruskal:
     when two components merge over an edge of cost w, every pair across them gets w.
 
-    Only a minimum spanning tree's edges can merge components (and every minimum
-    spanning tree gives the same minimax costs), so Kruskal runs on scipy's tree. The
-    leaves are then laid out in merge-tree order, where every component is a contiguous
-    range and each merge fills two blocks of the matrix by slicing."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import minimum_spanning_tree
-
-    # The cheapest of parallel edges (a sparse matrix would add them up).
-    low, high = np.minimum(rows, cols).astype(np.int64), np.maximum(rows, cols).astype(np.int64)
-    order = np.lexsort((data, low * count + high))
-    key = (low * count + high)[order]
-    first = np.ones(len(key), bool)
-    first[1:] = key[1:] != key[:-1]
-    pick = order[first]
-    graph = coo_matrix((data[pick], (low[pick], high[pick])), shape=(count, count))
-    tree = minimum_spanning_tree(graph).tocoo()
+    The edges are taken cheapest first; one joining two parts of a component merges
+    nothing (the edges that merge form a minimum spanning tree, and every minimum
+    spanning tree gives the same minimax costs). The leaves are then laid out in
+    merge-tree order, where every component is a contiguous range and each merge fills
+    two blocks of the matrix by slicing."""
     parent = np.arange(count)
 
     def find(i):
@@ -152,10 +141,12 @@ def _minimax(count: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray) -
     # Merge tree: cluster count + m joins children[m] over cost[m].
     children, cost = [], []
     cluster = list(range(count))  # union-find root -> its merge-tree node
-    for k in np.argsort(tree.data, kind="stable"):
-        a, b = find(tree.row[k]), find(tree.col[k])
+    for k in np.argsort(data, kind="stable"):
+        a, b = find(rows[k]), find(cols[k])
+        if a == b:
+            continue
         children.append((cluster[a], cluster[b]))
-        cost.append(tree.data[k])
+        cost.append(data[k])
         parent[b] = a
         cluster[a] = count + len(children) - 1
     # Leaves in merge-tree order (depth first, left child first), roots one after another.
@@ -188,9 +179,6 @@ def _geodesic(graph: SuperpixelGraph, border_nodes: np.ndarray, path_cost: str, 
     within a background should not add up); ``path_cost`` "sum" adds the steps
     (geodesic distance, the paper's), "minimax" takes the largest step (a barrier
     distance: gradual shading never separates)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import shortest_path
-
     i, j = graph.edges[:, 0], graph.edges[:, 1]
     weight = np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1)
     b = np.flatnonzero(border_nodes)
@@ -203,10 +191,36 @@ def _geodesic(graph: SuperpixelGraph, border_nodes: np.ndarray, path_cost: str, 
     data = np.maximum(np.concatenate([weight, bw]) - step_floor, 0.0) + 1e-6
     if path_cost == "minimax":
         return _minimax(graph.count, rows, cols, data)
-    matrix = coo_matrix((data, (rows, cols)), shape=(graph.count, graph.count)).tocsr()
-    # All pairs on a few hundred densely joined nodes (the border clique): Floyd-Warshall
-    # is 2-3 times faster than Dijkstra from every node, with the same distances.
-    return shortest_path(matrix, method="FW", directed=False)
+    return _floyd_warshall(graph.count, rows, cols, data)
+
+
+def _floyd_warshall(count: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray) -> np.ndarray:
+    """(n, n) shortest path lengths of the undirected graph with edges ``rows[k]`` -
+    ``cols[k]`` of length ``data[k]`` (> 0), by Floyd-Warshall.
+
+    All pairs on a few hundred densely joined nodes (the border clique): Floyd-Warshall
+    is 2-3 times faster than Dijkstra from every node. An edge given twice (two border
+    superpixels that are also neighbours) has the sum of its lengths, as in the sparse
+    graph this replaced, so the distances are the same bits. The paths through node
+    ``k`` are tried for the rows that reach ``k`` only (each step is numpy over rows;
+    scipy's import cost a fresh process 0.35 s)."""
+    dist = np.zeros((count, count))
+    np.add.at(dist, (rows, cols), data)
+    dist[dist == 0.0] = np.inf
+    np.minimum(dist, dist.T, out=dist)
+    np.fill_diagonal(dist, 0.0)
+    through = np.empty_like(dist)
+    for k in range(count):
+        column = dist[:, k]
+        reach = np.flatnonzero(column < np.inf)
+        if 2 * len(reach) > count:
+            np.add(column[:, None], dist[None, k, :], out=through)
+            np.minimum(dist, through, out=dist)
+        else:
+            rows_reaching = dist[reach]
+            np.minimum(rows_reaching, column[reach, None] + dist[None, k, :], out=rows_reaching)
+            dist[reach] = rows_reaching
+    return dist
 
 
 def boundary_connectivity(
@@ -254,16 +268,16 @@ def saliency_map(
         np.exp(-(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) ** 2) / (2 * _SIGMA_COLOUR**2))
         + _SMOOTH_FLOOR
     )
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.linalg import spsolve
-
     n = graph.count
     degree = np.bincount(i, w, n) + np.bincount(j, w, n)
-    rows = np.concatenate([i, j, np.arange(n)])
-    cols = np.concatenate([j, i, np.arange(n)])
-    data = np.concatenate([-w, -w, degree + background + foreground])
-    system = coo_matrix((data, (rows, cols)), shape=(n, n)).tocsc()  # Laplacian + diag(w_bg + w_fg)
-    solution = np.clip(spsolve(system, foreground), 0.0, 1.0)
+    # Laplacian + diag(w_bg + w_fg), dense: a few hundred unknowns solve in 2-3 ms, less
+    # than a sparse solver (and its import) takes. Its solution differs from a sparse
+    # LU's in the last bits of float64 only; the maps are float32 (to_pixels).
+    system = np.zeros((n, n))
+    system[i, j] = -w
+    system[j, i] = -w
+    system[np.arange(n), np.arange(n)] = degree + background + foreground
+    solution = np.clip(np.linalg.solve(system, foreground), 0.0, 1.0)
     if sharpness is not None:
         solution = solution * (0.5 + 0.5 * sharpness)
     return solution / max(float(solution.max()), 1e-9)
