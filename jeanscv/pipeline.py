@@ -201,6 +201,10 @@ def apply_jeans(
     get_preset(options.preset).with_posture(options.posture)  # a bad preset fails before the decoding
     if resolve_backend(options.backend, resolve_device(options.device)) == "fast":
         _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
+    if isinstance(source, np.ndarray) or Path(source).suffix.lower() not in SVG_EXTENSIONS:
+        from .silhouette.scene import prepare_lab_tables
+
+        prepare_lab_tables()  # segmentation's colour tables, built on the other core while the photo decodes
     silhouettes, resolved_kind, pixels, loaded = prepare_input(source, options)
     fitted = []
     image = pixels

@@ -124,9 +124,12 @@ def default_backend() -> str:
 
 
 def warm_up() -> None:
-    """Compile or load the fit kernels now, so the first photo does not wait for them."""
+    """Compile or load the fit kernels now, and have segmentation's colour tables built,
+    so the first photo does not wait for them."""
     from jeanscv import _fast
+    from jeanscv.silhouette.scene import prepare_lab_tables
 
+    prepare_lab_tables()
     if default_backend() == "fast":
         _fast.warm_up()
 

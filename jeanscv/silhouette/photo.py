@@ -61,7 +61,7 @@ from .masks import (
     rim_fraction,
     shape_for,
 )
-from .scene import Scene
+from .scene import Scene, rgb_to_lab
 
 #: :func:`segment`'s methods: the named ones, and ``mask`` (a given mask, cleaned).
 METHODS = (*SILHOUETTE_METHODS, "mask")
@@ -105,7 +105,7 @@ def _alpha_meaningful(alpha: np.ndarray) -> bool:
 def _channels(rgb: np.ndarray) -> dict[str, np.ndarray]:
     """Candidate 8-bit channels for thresholding: grey, HSV saturation, Lab a and b."""
     hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)
-    lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB)
+    lab = rgb_to_lab(rgb)
     return {
         "grey": cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY),
         "saturation": hsv[..., 1],

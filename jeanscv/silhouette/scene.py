@@ -2,8 +2,8 @@
 
 Public API (for the segmentation modules): :class:`Scene` (a coarse copy of the
 working image with its border colour model and the measures every candidate mask is
-scored by), :func:`object_likelihood`, :func:`spectral_saliency` and
-:func:`local_contrast`.
+scored by), :func:`object_likelihood`, :func:`spectral_saliency`,
+:func:`local_contrast`, and :func:`rgb_to_lab` with :func:`prepare_lab_tables`.
 
 Arrays: images are ``(h, w, 3)`` RGB ``uint8``; masks ``(h, w) bool``, True on the
 object; maps ``(h, w) float32`` in [0, 1]. Sizes are ``(width, height)`` as OpenCV
@@ -12,6 +12,7 @@ takes them.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import cv2
@@ -28,6 +29,37 @@ COARSE_SIZE = 320  # long side of the scene's copy, and of GrabCut's first pass 
 # under 0.9 at 160).
 HYPOTHESIS_SIZE = 240
 _CONTRAST_SIGMA = 2.0  # neighbourhood (coarse pixels) on which boundary contrast is judged
+
+
+_lab_tables: threading.Thread | None = None
+_lab_tables_lock = threading.Lock()
+
+
+def prepare_lab_tables(wait: bool = False) -> None:
+    """Have OpenCV build its tables for 8-bit RGB to Lab now, in a background thread
+    (or before returning, when ``wait``); once a process.
+
+    OpenCV builds them on a process's first such conversion: 0.15 s of one core, a
+    tenth of a fresh process's photo. It holds no GIL meanwhile, so started before
+    the decoding they are built on the other core. :func:`rgb_to_lab` waits for the
+    thread, so no conversion runs while they are being built.
+    """
+    global _lab_tables
+    with _lab_tables_lock:
+        if _lab_tables is None:
+            pixel = np.zeros((1, 1, 3), np.uint8)
+            _lab_tables = threading.Thread(
+                target=cv2.cvtColor, args=(pixel, cv2.COLOR_RGB2LAB), name="jeanscv-lab-tables", daemon=True
+            )
+            _lab_tables.start()
+    if wait:
+        _lab_tables.join()
+
+
+def rgb_to_lab(rgb: np.ndarray) -> np.ndarray:
+    """``cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB)`` of a uint8 RGB image (see :func:`prepare_lab_tables`)."""
+    prepare_lab_tables(wait=True)
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB)
 
 
 def object_likelihood(lab: np.ndarray, ring: int, bins: int = 32) -> np.ndarray:
@@ -161,7 +193,7 @@ class Scene:
         }
         labs, self.likelihood, self.unlike, tidiness = {}, {}, {}, {}
         for scale, image in self.images.items():
-            lab = cv2.cvtColor(image, cv2.COLOR_RGB2LAB)
+            lab = rgb_to_lab(image)
             raw = object_likelihood(lab, self.ring_width)
             labs[scale] = lab
             self.likelihood[scale] = cv2.GaussianBlur(raw, (0, 0), 1.0)
