@@ -36,7 +36,6 @@ def _load() -> None:
 
     from . import _fast, pipeline  # noqa: F401
     from .io import image, write  # noqa: F401
-
     from .silhouette.scene import prepare_lab_tables
 
     prepare_lab_tables(wait=True)  # built once here, not in every worker (no thread is left running)
