@@ -18,6 +18,10 @@ varied 12-MP photos with ``-j 2`` (and where a photo's time goes), and the defau
   segmentation, fit, denim, encode), in CPU seconds per photo after a warm-up photo.
 - *fit*: CPU seconds of the default fit on the paper's silhouettes (median).
 
+Every process started here runs without ``PYTHONDONTWRITEBYTECODE``: ``pip install``
+compiles the modules' bytecode, so a user's fresh process reads it instead of compiling
+the library's source (about 0.1 s more in a shell that sets it, as some containers do).
+
 Timings drift with other jobs on the machine: compare figures from one run.
 """
 
@@ -195,6 +199,7 @@ def main() -> None:
     parser.add_argument("--synthetic", type=int, default=4, help="textured synthetic scenes in the batch")
     parser.add_argument("--skip-cold", action="store_true", help="skip the first run (a minute or so)")
     args = parser.parse_args()
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)  # as after pip install (see the module's docstring)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

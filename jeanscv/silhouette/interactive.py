@@ -27,6 +27,8 @@ positive click are dropped, holes filled unless a negative click is in one.
 
 from __future__ import annotations
 
+import heapq
+import math
 from collections.abc import Sequence
 
 import cv2
@@ -417,19 +419,44 @@ class _ClickGraph:
         self.on_border = graph.border.any(axis=1)
         i, j = graph.edges[:, 0], graph.edges[:, 1]
         weight = np.maximum(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) - _STEP_FLOOR, 0.0) + 1e-3
-        self._i, self._j, self._w = i, j, weight
+        # Each node's neighbours and step costs, as Python lists: Dijkstra's loop reads
+        # them one at a time, which lists serve several times faster than arrays.
+        heads, tails, steps = np.concatenate([i, j]), np.concatenate([j, i]), np.concatenate([weight, weight])
+        order = np.argsort(heads, kind="stable")
+        self._first = np.searchsorted(heads[order], np.arange(self.count + 1)).tolist()
+        self._next, self._step = tails[order].tolist(), steps[order].tolist()
 
     def mean_of(self, mask: np.ndarray) -> np.ndarray:
         return np.bincount(self.labels.ravel(), mask.ravel().astype(np.float64), self.count) / self.area
 
     def distances(self, allowed: np.ndarray, sources) -> np.ndarray:
-        """(n,) geodesic distance to the nearest of ``sources`` through ``allowed`` nodes."""
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import dijkstra
+        """(n,) geodesic distance to the nearest of ``sources`` through ``allowed`` nodes
+        (a source outside them stays at 0 and leads nowhere).
 
-        keep = allowed[self._i] & allowed[self._j]
-        matrix = coo_matrix((self._w[keep], (self._i[keep], self._j[keep])), shape=(self.count, self.count)).tocsr()
-        return dijkstra(matrix, directed=False, indices=np.asarray(sources, int), min_only=True)
+        Dijkstra on a binary heap: a few thousand superpixels take 1-6 ms. (A node's
+        distance is the least sum along a path, added up from the source, so every
+        correct shortest-path routine gives the same bits; scipy's, used before, cost a
+        fresh process 0.35 s to import.)"""
+        usable = np.asarray(allowed, bool).tolist()
+        first, following, step = self._first, self._next, self._step
+        distance = [math.inf] * self.count
+        heap = []
+        for source in np.asarray(sources, int).ravel().tolist():
+            distance[source] = 0.0
+            heap.append((0.0, source))
+        heapq.heapify(heap)
+        while heap:
+            reached, node = heapq.heappop(heap)
+            if reached > distance[node] or not usable[node]:
+                continue
+            for k in range(first[node], first[node + 1]):
+                other = following[k]
+                if usable[other]:
+                    candidate = reached + step[k]
+                    if candidate < distance[other]:
+                        distance[other] = candidate
+                        heapq.heappush(heap, (candidate, other))
+        return np.array(distance)
 
 
 def _relative_depth(mask: np.ndarray, x: int, y: int) -> float:
