@@ -11,7 +11,7 @@ varied 12-MP photos with ``-j 2`` (and where a photo's time goes), and the defau
   median of three runs after one to warm the disk cache.
 - *imports*: seconds of each heavy import on that path, each measured in its own fresh
   process after the ones before it (numpy, OpenCV, the library, numba, loading the cached
-  kernels, scipy's graph routines).
+  kernels).
 - *batch*: the shared real photos (``../shared/real_photos``) upscaled to 12 MP, and a few
   textured synthetic scenes (bench.batch_speed), through ``jeanscv FOLDER -j 2``; then the
   stages of each photo in one process on one core as a ``-j`` worker runs them (decode,
@@ -82,7 +82,6 @@ IMPORTS = (
         "k = Objective(JEANS, 'all', {'coverage': 1.0}); k(JEANS.template[None], np.ones((16, 16)), 0.25);"
         "k.descend(BatchAdam(JEANS.template[None] / 16, 0.01), np.ones((16, 16)), 1, 0.25)",
     ),
-    ("scipy.sparse.csgraph", "import scipy.sparse.csgraph"),
 )
 
 # The snippets come as arguments, not by importing this module, whose own imports

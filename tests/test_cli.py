@@ -318,6 +318,26 @@ def test_version_and_help_do_not_import_heavy_modules():
     assert version.stdout == f"jeanscv {__version__}\n"
 
 
+def test_a_photo_with_a_click_imports_only_what_it_needs(tmp_path, compiled_kernels):
+    """A photo with a click (decode, segmentation, the click session, the fast fit, the
+    denim) imports neither torch nor scipy's sparse routines (0.35 s of a fresh
+    process): the page's first click and ``jeanscv PHOTO`` do not wait for them."""
+    photo = ROOT / "sample_images" / "cat.jpg"
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "jeanscv", str(photo), "--point", "300,200", "-o", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "cat.jeans.jpg").is_file()
+    imported = {line.split("|")[-1].strip() for line in done.stderr.splitlines() if line.startswith("import time:")}
+    heavy = {name for name in imported if name.split(".")[0] in {"torch", "kornia", "rawpy"}}
+    heavy |= {name for name in imported if name.startswith(("scipy.sparse", "scipy.linalg"))}
+    assert not heavy
+
+
 def test_raw_gives_jpeg_and_rgba_png_keeps_alpha(tmp_path, run_cli):
     samples = ROOT / "sample_images"
     result = run_cli(samples / "coffee.dng", *FAST, "-o", tmp_path, "-v", "--style", "flat")
