@@ -554,8 +554,22 @@ def _write_report(path: Path, records: list[dict], progress) -> bool:
     return True
 
 
+def one_blas_thread() -> None:
+    """numpy's OpenBLAS on one thread, unless the environment says otherwise (set before
+    numpy loads it, which reads this once; the workers and the fork server inherit it).
+
+    The command's linear algebra is on tiny matrices (the saliency's few-hundred-node
+    solve, 3x3 transforms), which a second thread does not speed up; but OpenBLAS's
+    threads spin for a while after each call, taking the core that the other ``-j``
+    worker, or the segmentation's GrabCut threads, would use: 2.7 to 7 s of CPU more
+    for 22 photos with ``-j 2`` (bench.latency's batch).
+    """
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
 def main() -> None:
     """Console-script entry point; ``jeanscv serve ...`` runs the web page's command."""
+    one_blas_thread()
     if len(sys.argv) > 1 and sys.argv[1] == "serve":
         from .serve import main as serve_main
 
