@@ -100,6 +100,8 @@ def _ensure_folder(folder: Path) -> None:
 
 def picture(result, options: JeansOptions):
     """The main output picture: the fit, captioned, optionally beside the original."""
+    if not (options.top or options.bottom or options.side_by_side):
+        return result.image  # no drawing: its imports (fonts, SVG escaping) are not free
     from .extras import add_captions, side_by_side
 
     image = add_captions(result.image, options.top, options.bottom)
@@ -118,8 +120,6 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
     from jeanscv import pipeline
     from jeanscv.io.write import atomic_write_bytes
     from jeanscv.silhouettes import silhouette_contours
-
-    from .extras import optimisation_gif, svg_document
 
     targets = wanted_outputs(job, options, overwrite)
     saved = saved_clicks(job, options)
@@ -151,12 +151,16 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
     if "json" in targets:
         data["json"] = report_text(result, job.display, str(job.outputs["image"])).encode("utf-8")
     if "svg" in targets:
+        from .extras import svg_document
+
         polygons = [obj.silhouette.framing.to_image(obj.fit.vertices) for obj in result.objects]
         contours = [c for obj in result.objects for c in silhouette_contours(obj.silhouette)]
         size = tuple(int(v) for v in result.silhouette.framing.image_size)
         text = svg_document(polygons, contours, size, f"jeanscv: {job.path.name}")
         data["svg"] = text.encode("utf-8")
     if "gif" in targets:
+        from .extras import optimisation_gif
+
         if getattr(fit, "trajectory", None) is None:
             raise RuntimeError("this jeanscv library gives no fit trajectory for --gif")
         data["gif"] = optimisation_gif(result, options.gif_frames)
