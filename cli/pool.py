@@ -15,8 +15,13 @@ first run that started it.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import queue as queues
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 
 #: Files handed to the pool per worker ahead of their turn: enough that a worker does not
 #: wait for the parent between small files on a busy machine, few enough that the first
@@ -91,12 +96,68 @@ def _new_pool(workers: int):
     )
 
 
+class _Signal:
+    """A signal's note in a pool's queue of finished files (see :func:`_signals_noted`)."""
+
+    def __init__(self, number: int, handler) -> None:
+        self.number, self.handler = number, handler
+
+    def act(self) -> None:
+        """Do what the signal's own handler does (raise KeyboardInterrupt, say), here."""
+        self.handler(self.number, None)
+
+
+@contextlib.contextmanager
+def _signals_noted(finished: queues.SimpleQueue) -> Iterator[None]:
+    """While the pool runs, Ctrl-C and SIGTERM put a :class:`_Signal` in ``finished``
+    instead of raising where the main thread happens to be.
+
+    An exception raised by a signal handler can land inside concurrent.futures while it
+    holds a future's lock (``wait()`` takes each future's lock in turn): the pool's
+    manager thread then blocks on that lock for ever as it cancels the queued files,
+    and the process never exits (seen once in some 160 interrupted runs). Noted here,
+    the signal is acted on when the loop takes the note from the queue, with no lock
+    held. ``SimpleQueue.put`` may be called from a signal handler (it is reentrant).
+    Only Python-level handlers are replaced, and only in the main thread.
+    """
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for number in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(number)
+            if callable(handler):
+                previous[number] = handler
+                signal.signal(number, lambda n, frame, h=handler: finished.put(_Signal(n, h)))
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def _next_finished(finished: queues.SimpleQueue):
+    """The next finished future; a signal noted meanwhile acts here."""
+    item = finished.get()
+    while isinstance(item, _Signal):
+        item.act()  # raises, unless its handler only records the signal
+        item = finished.get()
+    return item
+
+
+def _act_on_noted(finished: queues.SimpleQueue) -> None:
+    """Act on a signal noted after the last file finished."""
+    while True:
+        try:
+            item = finished.get_nowait()
+        except queues.Empty:
+            return
+        if isinstance(item, _Signal):
+            item.act()
+
+
 def _pool_round(queue, options, overwrite: bool, workers: int) -> list:
     """Process the jobs of ``queue`` in a fresh pool, some ahead of the workers, so the
     first file starts while later ones are still being found; returns the ``(job, wait)``
     items a dying worker left unfinished (then nothing more is taken from ``queue``)."""
-    from concurrent.futures import FIRST_COMPLETED
-    from concurrent.futures import wait as first_done
     from concurrent.futures.process import BrokenProcessPool
 
     from .worker import process_in_worker
@@ -104,16 +165,19 @@ def _pool_round(queue, options, overwrite: bool, workers: int) -> list:
     pool = _new_pool(workers)
     clean = False
     running: dict = {}  # future -> (job, wait)
+    finished: queues.SimpleQueue = queues.SimpleQueue()  # futures as they finish (their done-callbacks)
     left: list = []
     try:
-        queue.progress.start(f"{workers} workers")
-        while True:
-            while not left and len(running) < _AHEAD * workers and (item := queue.next()) is not None:
-                running[pool.submit(process_in_worker, item[0], options, overwrite, item[1])] = item
-            if not running:
-                break
-            done, _ = first_done(running, return_when=FIRST_COMPLETED)
-            for future in done:
+        with _signals_noted(finished):
+            queue.progress.start(f"{workers} workers")
+            while True:
+                while not left and len(running) < _AHEAD * workers and (item := queue.next()) is not None:
+                    future = pool.submit(process_in_worker, item[0], options, overwrite, item[1])
+                    running[future] = item
+                    future.add_done_callback(finished.put)
+                if not running:
+                    break
+                future = _next_finished(finished)
                 job, wait = item = running.pop(future)
                 try:
                     outcome = future.result()
@@ -123,6 +187,7 @@ def _pool_round(queue, options, overwrite: bool, workers: int) -> list:
                 except Exception as exc:  # noqa: BLE001 - this file failed in its worker (unpicklable, say)
                     outcome = _died(job, exc)
                 queue.finish(job, outcome)
+            _act_on_noted(finished)
         clean = True
     finally:
         if clean:
@@ -141,20 +206,26 @@ def _one_at_a_time(queue, options, overwrite: bool) -> None:
     from .worker import process_in_worker
 
     pool = None
+    finished: queues.SimpleQueue = queues.SimpleQueue()  # as in _pool_round
     try:
-        while (item := queue.next()) is not None:
-            job, wait = item
-            pool = pool or _new_pool(1)
-            try:
-                outcome = pool.submit(process_in_worker, job, options, overwrite, wait).result()
-            except BrokenProcessPool as exc:
-                outcome = _died(job, exc)
-                pool.shutdown(wait=True)
-                pool = None
-                remove_leftovers(job.outputs.values())
-            except Exception as exc:  # noqa: BLE001 - as in _pool_round
-                outcome = _died(job, exc)
-            queue.finish(job, outcome)
+        with _signals_noted(finished):
+            while (item := queue.next()) is not None:
+                job, wait = item
+                pool = pool or _new_pool(1)
+                future = pool.submit(process_in_worker, job, options, overwrite, wait)
+                future.add_done_callback(finished.put)
+                _next_finished(finished)
+                try:
+                    outcome = future.result()
+                except BrokenProcessPool as exc:
+                    outcome = _died(job, exc)
+                    pool.shutdown(wait=True)
+                    pool = None
+                    remove_leftovers(job.outputs.values())
+                except Exception as exc:  # noqa: BLE001 - as in _pool_round
+                    outcome = _died(job, exc)
+                queue.finish(job, outcome)
+            _act_on_noted(finished)
     except BaseException:
         if pool is not None:
             _stop_pool(pool)
