@@ -125,9 +125,9 @@ def _minimax(count: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray) -
     """All-pairs minimax path costs (the largest step on the best path), by Kruskal:
     when two components merge over an edge of cost w, every pair across them gets w.
 
-    The edges are taken cheapest first; one joining two parts of a component merges
-    nothing (the edges that merge form a minimum spanning tree, and every minimum
-    spanning tree gives the same minimax costs). The leaves are then laid out in
+    The edges are taken cheapest first; an edge within one component merges nothing
+    (the edges that merge form a minimum spanning tree, and every minimum spanning
+    tree gives the same minimax costs). The leaves are then laid out in
     merge-tree order, where every component is a contiguous range and each merge fills
     two blocks of the matrix by slicing."""
     parent = np.arange(count)
