@@ -105,9 +105,9 @@ def prepare_input(
     if isinstance(options.clicks, (str, os.PathLike)):
         options = options.replace(clicks=_read_clicks(options.clicks))  # read first: any input reports a bad file
     loaded = None
+    if _is_svg_path(source):
+        return [read_svg(source)], "silhouette", None, None
     if isinstance(source, (str, os.PathLike)):
-        if Path(source).suffix.lower() in SVG_EXTENSIONS:
-            return [read_svg(source)], "silhouette", None, None
         loaded = load_image(source, max_pixels=options.max_pixels, raw_half_size=options.raw_half_size)
         pixels = loaded.pixels
     else:
@@ -143,6 +143,11 @@ def prepare_input(
         shared=shared,
     )
     return silhouettes, "photo", pixels, loaded
+
+
+def _is_svg_path(source) -> bool:
+    """Whether ``source`` names an SVG file (a silhouette: nothing to decode or segment)."""
+    return isinstance(source, (str, os.PathLike)) and Path(source).suffix.lower() in SVG_EXTENSIONS
 
 
 def _clicks(options: JeansOptions, shown: tuple[int, int]):
@@ -201,7 +206,7 @@ def apply_jeans(
     get_preset(options.preset).with_posture(options.posture)  # a bad preset fails before the decoding
     if resolve_backend(options.backend, resolve_device(options.device)) == "fast":
         _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
-    if isinstance(source, np.ndarray) or Path(source).suffix.lower() not in SVG_EXTENSIONS:
+    if not _is_svg_path(source):
         from .silhouette.scene import prepare_lab_tables
 
         prepare_lab_tables()  # segmentation's colour tables, built on the other core while the photo decodes

@@ -66,6 +66,16 @@ def test_composite_stays_on_the_object_and_looks_like_denim(tmp_path):
     assert painted.mean(axis=-1).std() > 8  # textured, not one flat colour
 
 
+def test_any_array_like_photo_is_taken_as_its_array():
+    """A Pillow image (or anything numpy turns into a uint8 image) gives the same
+    result as its array: only paths are opened as files."""
+    photo, _ = synthetic_photo(120, 160)
+    from_array = apply_jeans(photo, iterations=5)
+    from_pillow = apply_jeans(Image.fromarray(photo), iterations=5)
+    assert np.array_equal(from_pillow.image, from_array.image)
+    assert np.array_equal(from_pillow.fit.vertices, from_array.fit.vertices)
+
+
 def test_report_says_why_auto_took_its_subject():
     photo, mask = synthetic_photo()
     result = apply_jeans(photo, iterations=10)
