@@ -258,8 +258,8 @@ def skip_exit_collection() -> None:
     """Skip the garbage collections of the interpreter's exit.
 
     At exit Python collects garbage while it tears the modules down, traversing every
-    object the imports made (numba's typing tables, scipy, numpy): about 0.25 s of CPU at
-    the end of every command and worker, for memory the process is about to return
+    object the imports made (numba's typing tables, numpy, the library): about 0.25 s of
+    CPU at the end of every command and worker (measured when scipy was imported too), for memory the process is about to return
     anyway. Frozen objects are left out of every collection; the outputs are written
     (and their files closed) before exit, and atexit handlers still run.
     """
@@ -273,8 +273,8 @@ def skip_exit_collection() -> None:
 def fewer_collections(threshold: int = 10_000) -> Iterator[None]:
     """Collect young garbage after ``threshold`` new objects instead of Python's 700.
 
-    A command's imports (numpy, scipy, numba, the library) make some 300,000 objects in a
-    second; with the default threshold that set off about 235 collections, 0.15 s of CPU
+    A command's imports (numpy, numba, the library; scipy too when this was measured) make
+    some 300,000 objects in a second; with the default threshold that set off about 235 collections, 0.15 s of CPU
     in a fresh process that handles one 12-MP photo, and 16 collections (0.06 s) with
     this one. Memory is the same (the peak is the photo's arrays); the threshold is
     restored afterwards, for a program that runs the command in process.
