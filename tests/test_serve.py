@@ -321,7 +321,7 @@ def test_folder_gallery_and_confinement(make_client, folder):
     listing = client.get("/api/folder").json()
     assert [item["name"] for item in listing["items"]] == ["person.png", "pets.png"]
     assert all(not item["output"] for item in listing["items"])
-    thumb = client.get(listing["items"][0]["thumb"])
+    thumb = client.post(listing["items"][0]["thumb"])
     assert thumb.status_code == 200 and thumb.headers["content-type"] == "image/jpeg"
     assert (folder / "person.jeans.png").is_file()  # the command line's output, made on demand and kept
     for path in (
@@ -332,7 +332,7 @@ def test_folder_gallery_and_confinement(make_client, folder):
         "/api/folder/pets.png/thumb",
         "/api/folder/%2e%2e/thumb",
     ):
-        assert client.get(path).status_code == 404, path
+        assert client.post(path).status_code == 404, path
     assert client.post("/api/folder/..%2Fsecret.png/open").status_code == 404
     assert sorted(p.name for p in folder.parent.iterdir()) == ["photos", "secret.png"]
 

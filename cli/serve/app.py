@@ -446,7 +446,7 @@ def create_app(config: Config) -> Guard:
         Route("/api/photos/{photo}/original", api.original),
         Route("/api/results/{result}/{kind}", api.result_file),
         Route("/api/folder", api.folder_list),
-        Route("/api/folder/{item:int}/thumb", api.folder_thumb),
+        Route("/api/folder/{item:int}/thumb", api.folder_thumb, methods=["POST"]),
         Route("/api/folder/{item:int}/open", api.folder_open, methods=["POST"]),
         Route("/api/folder/{item:int}/clicks", api.folder_save, methods=["POST"]),
     ]

@@ -394,7 +394,8 @@ async function loadGallery() {
 
 async function loadThumb(item, tile, thumb) {
   for (let attempt = 0; attempt < 20; attempt++) {
-    const response = await fetch(`${item.thumb}?v=${Date.now()}`);
+    // POST: making a missing output writes to the folder, which only this page may ask for.
+    const response = await fetch(item.thumb, { method: "POST" });
     if (response.status === 503) {
       await new Promise((r) => setTimeout(r, 1000 * (Number(response.headers.get("Retry-After")) || 2)));
       continue;
