@@ -33,6 +33,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import reprlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -132,16 +133,28 @@ class Clicks:
 
 
 def _point(value) -> Point:
-    """A click as two finite floats, else JeansError."""
+    """A click as two finite floats of a plausible size, else JeansError."""
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
-        raise JeansError(f"a click must be two numbers [x, y], got {value!r}"[:200])
+        raise JeansError(f"a click must be two numbers [x, y], got {_shown(value)}")
     try:
         x, y = (float(v) for v in value)
     except (TypeError, ValueError):
-        raise JeansError(f"a click must be two numbers [x, y], got {value!r}"[:200]) from None
+        raise JeansError(f"a click must be two numbers [x, y], got {_shown(value)}") from None
+    except OverflowError:  # an integer of hundreds of digits
+        raise JeansError(f"a click's coordinates are too large to be pixels, got {_shown(value)}") from None
     if isinstance(value[0], bool) or isinstance(value[1], bool) or not (math.isfinite(x) and math.isfinite(y)):
-        raise JeansError(f"a click must be two finite numbers [x, y], got {value!r}"[:200])
+        raise JeansError(f"a click must be two finite numbers [x, y], got {_shown(value)}")
     return x, y
+
+
+def _shown(value) -> str:
+    """A short repr of what a clicks file held: never raises (Python refuses the repr
+    of an integer of over 4300 digits) and never grows with the input."""
+    try:
+        text = reprlib.repr(value)
+    except (ValueError, RecursionError):
+        text = f"a {type(value).__name__}"
+    return text[:80]
 
 
 def _pixel(point: Point) -> tuple[int, int]:

@@ -233,7 +233,9 @@ def test_not_a_form_and_bad_json(client):
     bad = client.post(f"/api/photos/{first['photo']}/render", content=b"{nope")
     assert bad.status_code == 422 and "not valid JSON" in bad.json()["error"]
     for body, words in (
-        ({"objects": [{"positive": [[1e9, 5]]}]}, "outside the 800x500 image"),
+        ({"objects": [{"positive": [[1e5, 5]]}]}, "outside the 800x500 image"),
+        ({"objects": [{"positive": [[1e300, 5]]}]}, "outside the 800x500 image"),
+        ({"objects": [{"positive": [[int("9" * 401), 5]]}]}, "too large to be pixels"),
         ({"objects": [{"positive": [["a", 5]]}]}, "two numbers"),
         ({"objects": "x"}, "must be a list"),
         ({"options": {"style": "gold"}}, "unknown style"),
@@ -279,10 +281,10 @@ def test_full_pool_answers_503(make_client):
     client = make_client(workers=1, queue=0)
     state = client.app.app.state.jeanscv
     release = threading.Event()
-    assert state.pool.submit_background(release.wait)
+    state.pool.submit_background(release.wait)
     try:
         answer = upload(client, "two.png", png_bytes(scene().image))
-        assert answer.status_code == 503 and answer.headers["retry-after"] == "2"
+        assert answer.status_code == 503 and int(answer.headers["retry-after"]) >= 1
         assert "busy" in answer.json()["error"]
     finally:
         release.set()

@@ -57,10 +57,13 @@ def test_serve_rejects_a_missing_folder(tmp_path):
 def test_warning_when_not_on_loopback(monkeypatch, capsys, host, warned):
     import uvicorn
 
+    from jeanscv_cli.serve import run
     from jeanscv_cli.serve.run import run_server
 
     seen = {}
-    monkeypatch.setattr(uvicorn.Server, "run", lambda self: seen.update(host=self.config.host))
+    monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets=None: seen.update(host=self.config.host))
+    listen = run.listen
+    monkeypatch.setattr(run, "listen", lambda host, port: listen("127.0.0.1", 0))  # any host can be bound
     folders = set(Path(tempfile.gettempdir()).glob("jeanscv-serve-*"))
     code = run_server(
         folder=None,

@@ -6,6 +6,7 @@ load when the command runs. See ``docs/serve.md``.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -54,20 +55,35 @@ NAME.clicks.json clicks files, which a later 'jeanscv FOLDER' run uses.
     show_default=True,
     help="Memory for the photos and results kept; the oldest are dropped past it.",
 )
-@click.option("--workers", type=click.IntRange(1, 64), default=1, show_default=True, help="Photos worked on at once.")
+@click.option(
+    "--workers",
+    type=click.IntRange(1, 64),
+    default=None,
+    help="Photos worked on at once. [default: one per core, at most 4, fewer on a small memory]",
+)
 @click.option(
     "--queue",
-    type=click.IntRange(0, 256),
-    default=8,
+    type=click.IntRange(0, 1024),
+    default=32,
     show_default=True,
-    help="Requests that may wait for a worker; more are answered 'busy, retry' (503).",
+    help="Requests that may wait for a worker, in arrival order; more are answered 'busy, retry' (503).",
 )
-def serve(folder, host, port, open_browser, max_upload_mb, max_pixels, memory_mb, workers, queue) -> None:
+@click.option(
+    "--job-seconds",
+    type=click.FloatRange(1, 3600),
+    default=120,
+    show_default=True,
+    help="Longest a request waits for its photo's work before it is answered 'took too long' (504).",
+)
+@click.option("--debug", is_flag=True, help="Log the tracebacks of unexpected errors to this terminal.")
+def serve(
+    folder, host, port, open_browser, max_upload_mb, max_pixels, memory_mb, workers, queue, job_seconds, debug
+) -> None:
     """Serve a page to put jeans on a photo: drop it, click the subject, download the meme.
 
     With FOLDER: a gallery of its photos with their jeans, made on demand and kept there.
     """
-    from .run import run_server
+    from .run import default_workers, run_server
 
     code = run_server(
         folder=folder,
@@ -77,10 +93,16 @@ def serve(folder, host, port, open_browser, max_upload_mb, max_pixels, memory_mb
         max_upload=max_upload_mb << 20,
         max_pixels=max_pixels,
         store_bytes=memory_mb << 20,
-        workers=workers,
+        workers=workers or default_workers(),
         queue=queue,
+        job_seconds=job_seconds,
+        debug=debug,
     )
-    sys.exit(code)
+    # End here, without the interpreter's tear-down: a worker thread may still be inside
+    # OpenCV or numba with a photo the server has given up (see run.py).
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 def main(argv: list[str]) -> None:

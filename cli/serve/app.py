@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
+import stat
 import sys
 import tempfile
 import threading
+import traceback
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -25,8 +28,8 @@ from starlette.routing import Route
 from jeanscv.errors import JeansError
 
 from . import engine
-from .guard import Guard, TooLarge, own_names
-from .store import Busy, Pool, Store
+from .guard import BodyRefused, Guard, TooLarge, own_names
+from .store import Busy, Pool, Stopping, Store, TooSlow
 
 #: Default upload cap: a 60-MP camera RAW file is 60-120 MB.
 DEFAULT_MAX_UPLOAD = 200 << 20
@@ -61,9 +64,15 @@ class Config:
     max_pixels: int = DEFAULT_MAX_PIXELS
     store_bytes: int = DEFAULT_STORE_BYTES
     workers: int = 1
-    queue: int = 8
+    queue: int = 32
+    #: Longest a request waits for a worker before it is answered 503 (seconds).
+    max_wait: float = 30.0
+    #: Longest a request waits for its running job before it is answered 504 (seconds).
+    job_seconds: float = 120.0
     backend: str | None = None
     warm: bool = True
+    #: Log tracebacks of unexpected errors to the terminal (never to the client).
+    debug: bool = False
     extra_names: tuple[str, ...] = field(default_factory=tuple)
 
 
@@ -87,26 +96,47 @@ class State:
         self.config = config
         self.photos = Store(config.store_bytes)
         self.results = Store(max(config.store_bytes // 4, 64 << 20))
-        self.pool = Pool(config.workers, config.queue)
+        self.pool = Pool(config.workers, config.queue, max_wait=config.max_wait, job_seconds=config.job_seconds)
         self.tmp: Path | None = None  # made when the server starts, removed when it stops
         self.folder_lock = threading.Lock()
         self.backend = config.backend
+        self.folder = config.folder.resolve() if config.folder is not None else None
 
     def open(self) -> None:
         self.tmp = Path(tempfile.mkdtemp(prefix="jeanscv-serve-"))
 
+    def stop(self) -> None:
+        """Answer every waiting and running request at once (the server is stopping)."""
+        self.pool.stop()
+
     def close(self) -> None:
-        self.pool.shutdown()
+        """Stop, and remove the temporary folder; running jobs are not waited for."""
+        self.pool.stop()
         if self.tmp is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
 
 
+class Refused(Exception):
+    """Answer the request with ``{"error": reason}`` and ``status`` (raised anywhere in a
+    handler; the one way the server says no)."""
+
+    def __init__(self, status: int, reason: str, headers: dict | None = None):
+        super().__init__(reason)
+        self.status, self.reason, self.headers = status, reason, headers
+
+
 def _error(status: int, reason: str, **headers) -> JSONResponse:
-    return JSONResponse({"error": reason}, status_code=status, headers=headers or None)
+    return JSONResponse({"error": client_text(reason)}, status_code=status, headers=headers or None)
 
 
-def _busy() -> JSONResponse:
-    return _error(503, "the server is busy with other photos: trying again in a moment", **{"Retry-After": "2"})
+#: An absolute file path inside a message: shown to a client as its last part only.
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.:/])/(?:[^\s'\"/<>]+/)+([^\s'\"/<>]*)")
+
+
+def client_text(reason: str) -> str:
+    """A reason fit for a web client: one line, short, no absolute path of this machine."""
+    text = " ".join(str(reason).split())
+    return _ABSOLUTE_PATH.sub(lambda match: match.group(1) or "(a folder)", text)[:500]
 
 
 def _safe_name(filename: str | None) -> str:
@@ -128,24 +158,25 @@ def _suffix(name: str) -> str:
 
 
 def _log(message: str) -> None:
-    print(f"jeanscv serve: {' '.join(message.split())}", file=sys.stderr, flush=True)
+    print(f"jeanscv serve: {' '.join(str(message).split())}", file=sys.stderr, flush=True)
 
 
-def _reason(exc: BaseException, name: str) -> str:
+def log_unexpected(exc: BaseException, where: str, debug: bool) -> None:
+    """One line on the terminal for an error that is not a bad input; the traceback too
+    with ``--debug``. The client gets only the one-line reason."""
     from ..worker import failure_reason
 
-    reason = failure_reason(exc)
-    if not isinstance(exc, JeansError):
-        _log(f"{name}: {reason}")
-    return f"{name}: {reason}"
+    _log(f"{where}: {failure_reason(exc)}")
+    if debug:
+        traceback.print_exception(exc, file=sys.stderr)
 
 
 async def _json_object(request: Request) -> dict:
     """The request's JSON object body, else JeansError saying why."""
+    body = await request.body()
     try:
-        body = await request.body()
         data = json.loads(body or b"{}")
-    except (ValueError, UnicodeDecodeError):
+    except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: brackets nested 100,000 deep
         raise JeansError("the request body is not valid JSON") from None
     if not isinstance(data, dict):
         raise JeansError("expected a JSON object")
@@ -162,6 +193,27 @@ class _Api:
             path: (resources.files(__package__).joinpath("static", file).read_bytes(), media)
             for path, (file, media) in _STATIC.items()
         }
+
+    async def job(self, name: str, function, *args):
+        """``function(*args)`` on the pool: its value, else :class:`Refused` with the one-line
+        reason (a bad input 422, busy 503, stopping 503, too slow 504, a bug 500)."""
+        try:
+            return await self.state.pool.run(function, *args)
+        except Busy:
+            retry = str(self.state.pool.retry_after())
+            busy = "the server is busy with other photos: trying again in a moment"
+            raise Refused(503, busy, {"Retry-After": retry}) from None
+        except Stopping:
+            raise Refused(503, "the server is stopping") from None
+        except TooSlow:
+            limit = f"{self.config.job_seconds:g}"
+            raise Refused(504, f"{name}: took longer than the server's limit of {limit} s") from None
+        except Exception as exc:  # noqa: BLE001 - any failure is one line; the terminal has the rest of a bug
+            from ..worker import failure_reason
+
+            if not isinstance(exc, JeansError):
+                log_unexpected(exc, name, self.config.debug)
+            raise Refused(422, f"{name}: {failure_reason(exc)}") from None
 
     async def static(self, request: Request) -> Response:
         body, media = self.pages[request.url.path]
@@ -204,7 +256,8 @@ class _Api:
         if clicks is not None:
             answer["saved_clicks"] = [obj.to_json() for obj in clicks.objects]
         if photo.kind == "photo":
-            # The click session (about half a second) is made while the person looks.
+            # The click session (about half a second) is made while the person looks,
+            # on a worker that no request is waiting for.
             self.state.pool.submit_background(_prepare_session, photo)
         return {"photo": photo_id, "name": name, "kind": photo.kind, **answer}
 
@@ -216,13 +269,16 @@ class _Api:
                 shutil.copyfileobj(upload.file, copy, 1 << 20)
             return self.open_and_render(Path(temporary), name, None)
         finally:
-            os.unlink(temporary)
+            try:
+                os.unlink(temporary)
+            except OSError:
+                pass  # the server stopped and removed its temporary folder
 
     async def upload(self, request: Request) -> Response:
         try:
             form = await request.form(max_files=1, max_fields=8)
-        except TooLarge:
-            raise  # the Guard answers 413
+        except (TooLarge, BodyRefused):
+            raise  # answered 413, or as the stalled or stopped upload says
         except Exception:  # noqa: BLE001 - malformed multipart: one line, never a traceback
             return _error(400, "expected a multipart form with one file in the field 'file'")
         try:
@@ -230,12 +286,7 @@ class _Api:
             if file is None or isinstance(file, str):
                 return _error(400, "expected a multipart form with one file in the field 'file'")
             name = _safe_name(file.filename)
-            try:
-                return JSONResponse(await self.state.pool.run(self.upload_job, file, name))
-            except Busy:
-                return _busy()
-            except Exception as exc:  # noqa: BLE001 - the command line's one-line reason
-                return _error(422, _reason(exc, name))
+            return JSONResponse(await self.job(name, self.upload_job, file, name))
         finally:
             await form.close()
 
@@ -250,12 +301,7 @@ class _Api:
             clicks = engine.clicks_from_json(data.get("objects"), photo.size)
         except JeansError as exc:
             return _error(422, f"{photo.name}: {exc}")
-        try:
-            answer = await self.state.pool.run(self.render, photo_id, photo, clicks, render_options)
-        except Busy:
-            return _busy()
-        except Exception as exc:  # noqa: BLE001
-            return _error(422, _reason(exc, photo.name))
+        answer = await self.job(photo.name, self.render, photo_id, photo, clicks, render_options)
         return JSONResponse({"photo": photo_id, "name": photo.name, "kind": photo.kind, **answer})
 
     async def result_file(self, request: Request) -> Response:
@@ -266,7 +312,7 @@ class _Api:
         if kind == "preview":
             return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
         if kind not in DOWNLOADS:
-            return _error(404, f"no download called {kind!r}")
+            return _error(404, "no such download")
         photo = self.state.photos.get(result.photo_id)
         if photo is None:
             return _error(404, "the photo has expired: drop it again")
@@ -282,12 +328,7 @@ class _Api:
         key = (kind, wanted)
         made = result.downloads.get(key)
         if made is None:
-            try:
-                made = await self.state.pool.run(self.make_download, photo, result, wanted, kind)
-            except Busy:
-                return _busy()
-            except Exception as exc:  # noqa: BLE001
-                return _error(422, _reason(exc, photo.name))
+            made = await self.job(photo.name, self.make_download, photo, result, wanted, kind)
             if len(made[0]) < (32 << 20):
                 result.downloads = {k: v for k, v in result.downloads.items() if k[0] != kind}  # the newest of a kind
                 result.downloads[key] = made
@@ -315,9 +356,11 @@ class _Api:
         return engine.download(photo, objects, wanted, kind, result.clicks)
 
     # ------------------------------------------------------------------ folder mode
+    # Folder mode reads and writes only plain files directly in the folder: a photo,
+    # output or clicks file that is a symbolic link (from an archive or a clone) is
+    # never followed, so nothing outside the folder is read through one.
     def folder_items(self) -> list:
-        folder = self.config.folder.resolve()
-        return [job for job in engine.folder_jobs(self.config.folder) if _inside(job.path, folder)]
+        return [job for job in engine.folder_jobs(self.config.folder) if _plain_file_in(job.path, self.state.folder)]
 
     def folder_job(self, request: Request):
         if self.config.folder is None:
@@ -330,7 +373,7 @@ class _Api:
         return {
             "item": index,
             "name": str(job.path.relative_to(self.config.folder)),
-            "output": job.outputs["image"].exists(),
+            "output": _plain_file_in(job.outputs["image"], self.state.folder),
             "clicks": engine.saved_clicks(job) is not None,
             "thumb": f"/api/folder/{index}/thumb",
         }
@@ -343,26 +386,25 @@ class _Api:
             {"folder": self.config.folder.name, "items": [self.item_entry(i, j) for i, j in enumerate(jobs)]}
         )
 
-    def thumbnail(self, job) -> bytes | str:
+    def thumbnail(self, job) -> bytes:
+        """The item's output as a thumbnail, made first when missing or stale, and made
+        again when the file there cannot be read (a damaged output is not kept)."""
+        output = job.outputs["image"]
         with self.state.folder_lock:
+            _refuse_links(job, self.state.folder)
             if engine.output_stale(job):
-                reason = engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels)
-                if reason:
-                    return reason
-        return engine.thumbnail(job.outputs["image"], _THUMB_SIDE)
+                engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels)
+            try:
+                return engine.thumbnail(output, _THUMB_SIDE)
+            except JeansError:
+                engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels)
+                return engine.thumbnail(output, _THUMB_SIDE)
 
     async def folder_thumb(self, request: Request) -> Response:
         job = self.folder_job(request)
         if job is None:
             return _error(404, "no such photo in the folder")
-        try:
-            made = await self.state.pool.run(self.thumbnail, job)
-        except Busy:
-            return _busy()
-        except Exception as exc:  # noqa: BLE001
-            return _error(422, _reason(exc, job.path.name))
-        if isinstance(made, str):
-            return _error(422, f"{job.path.name}: {made}")
+        made = await self.job(job.path.name, self.thumbnail, job)
         return Response(made, media_type="image/jpeg", headers={"Cache-Control": "no-cache"})
 
     async def folder_open(self, request: Request) -> Response:
@@ -380,12 +422,7 @@ class _Api:
                 return None
             return clicks
 
-        try:
-            answer = await self.state.pool.run(self.open_and_render, job.path, job.path.name, saved)
-        except Busy:
-            return _busy()
-        except Exception as exc:  # noqa: BLE001
-            return _error(422, _reason(exc, job.path.name))
+        answer = await self.job(job.path.name, self.open_and_render, job.path, job.path.name, saved)
         answer["item"] = request.path_params["item"]
         return JSONResponse(answer)
 
@@ -411,14 +448,10 @@ class _Api:
 
         def save() -> None:
             with self.state.folder_lock:
+                _refuse_links(job, self.state.folder)
                 engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels)
 
-        try:
-            await self.state.pool.run(save)
-        except Busy:
-            return _busy()
-        except Exception as exc:  # noqa: BLE001
-            return _error(422, _reason(exc, photo.name))
+        await self.job(photo.name, save)
         return JSONResponse(self.item_entry(request.path_params["item"], job))
 
     @asynccontextmanager
@@ -433,6 +466,13 @@ class _Api:
 
     async def too_large(self, request: Request, exc: TooLarge) -> Response:
         return _error(413, TooLarge.reason(self.config.max_upload))
+
+    async def refused(self, request: Request, exc: Refused | BodyRefused) -> Response:
+        return _error(exc.status, exc.reason, **(getattr(exc, "headers", None) or {}))
+
+    async def unexpected(self, request: Request, exc: Exception) -> Response:
+        # Starlette then raises it on to the Guard, which logs one line (never the client).
+        return _error(500, "unexpected error (the server's terminal says more)")
 
 
 def create_app(config: Config) -> Guard:
@@ -451,10 +491,27 @@ def create_app(config: Config) -> Guard:
         Route("/api/folder/{item:int}/clicks", api.folder_save, methods=["POST"]),
     ]
 
-    app = Starlette(routes=routes, lifespan=api.lifespan, exception_handlers={TooLarge: api.too_large})
+    app = Starlette(
+        routes=routes,
+        lifespan=api.lifespan,
+        exception_handlers={
+            TooLarge: api.too_large,
+            Refused: api.refused,
+            BodyRefused: api.refused,
+            Exception: api.unexpected,
+        },
+    )
     app.state.jeanscv = state
     names = own_names(config.host) | set(config.extra_names)
-    return Guard(app, names=names, port=config.port or None, max_body=config.max_upload)
+    return Guard(
+        app,
+        names=names,
+        port=config.port or None,
+        max_body=config.max_upload,
+        pages=frozenset(_STATIC),
+        stopping=state.pool,
+        debug=config.debug,
+    )
 
 
 def _result_bytes(result: Result) -> int:
@@ -469,10 +526,24 @@ def _prepare_session(photo) -> None:
         pass
 
 
-def _inside(path: Path, folder: Path) -> bool:
-    """Whether ``path`` (symbolic links followed) lies in ``folder``."""
+def _plain_file_in(path: Path, folder: Path) -> bool:
+    """Whether ``path`` is a regular file, not a symbolic link, directly in ``folder``."""
     try:
-        path.resolve().relative_to(folder)
-    except ValueError:
+        info = os.lstat(path)
+    except OSError:
         return False
-    return True
+    return stat.S_ISREG(info.st_mode) and path.parent.resolve() == folder
+
+
+def _refuse_links(job, folder: Path) -> None:
+    """JeansError when the photo, its output or its clicks file is a symbolic link (or
+    not in the folder): folder mode reads and writes only the folder's own files."""
+    from jeanscv.clicks import sidecar_path
+
+    for path in (job.path, job.outputs["image"], sidecar_path(job.path)):
+        if path.is_symlink():
+            raise JeansError(
+                f"{path.name} is a symbolic link: not followed (folder mode reads only the folder's files)"
+            )
+    if not _plain_file_in(job.path, folder):
+        raise JeansError("not a file of the folder")

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import io
 import json
+import os
+import stat
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -425,9 +427,10 @@ def folder_jobs(folder: Path) -> list[Job]:
 
 def saved_clicks(job: Job) -> Clicks | None:
     """The photo's clicks sidecar, when it has a usable one (the command line's rule for
-    which file that is: :func:`jeanscv_cli.worker.saved_clicks`)."""
+    which file that is: :func:`jeanscv_cli.worker.saved_clicks`); never one that is a
+    symbolic link (folder mode reads only the folder's own files)."""
     path = worker.saved_clicks(job, JeansOptions())
-    if path is None:
+    if path is None or path.is_symlink():
         return None
     try:
         return read_clicks(path)
@@ -441,20 +444,19 @@ def output_stale(job: Job) -> bool:
     return "image" in worker.wanted_outputs(job, JeansOptions(), overwrite=False)
 
 
-def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> str:
+def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> None:
     """Make the folder photo's output as ``jeanscv FOLDER`` does (its saved clicks
-    included); '' or the failure's one-line reason."""
+    included); JeansError with the failure's one-line reason."""
     outcome = worker.process(job, JeansOptions(backend=backend, max_pixels=max_pixels), overwrite=True)
-    return outcome.error if outcome.status == "failed" else ""
+    if outcome.status == "failed":
+        raise JeansError(outcome.error)
 
 
 def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) -> None:
     """Save the folder photo's clicks beside it, then make its output from them as the
     command line does; JeansError with the reason when that fails."""
     write_clicks(sidecar_path(job.path), clicks)
-    reason = write_folder_outputs(job, backend, max_pixels)
-    if reason:
-        raise JeansError(reason)
+    write_folder_outputs(job, backend, max_pixels)
 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
@@ -473,16 +475,37 @@ def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
     return Clicks(clicks.objects, (int(size[0]), int(size[1])))
 
 
+#: Largest output file a thumbnail is made from (a 100-MP PNG is about 300 MB).
+MAX_THUMB_SOURCE = 512 << 20
+
+
 def thumbnail(path: Path, side: int) -> bytes:
-    """A JPEG of an output picture with its long side at most ``side`` (for the gallery)."""
-    with Image.open(path) as image:
-        image.draft("RGB", (side, side))
-        image = image.convert("RGBA") if image.mode in ("RGBA", "LA", "P") else image.convert("RGB")
-        image.thumbnail((side, side))
-        if image.mode == "RGBA":
-            white = Image.new("RGB", image.size, (255, 255, 255))
-            white.paste(image, mask=image.getchannel("A"))
-            image = white
-        buffer = io.BytesIO()
-        image.save(buffer, "JPEG", quality=85)
+    """A JPEG of an output picture with its long side at most ``side`` (for the gallery).
+
+    The file is opened without following a symbolic link and must be a regular file;
+    JeansError (naming only the file) when it cannot be read or decoded.
+    """
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise JeansError(f"cannot read {path.name} ({(exc.strerror or 'error').lower()})") from None
+    with os.fdopen(fd, "rb") as file:
+        info = os.fstat(file.fileno())
+        if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_THUMB_SOURCE:
+            raise JeansError(f"cannot read {path.name} (not a picture file of a usable size)")
+        data = file.read()
+    try:
+        with Image.open(io.BytesIO(data), formats=("JPEG", "PNG", "WEBP", "TIFF")) as image:
+            image.draft("RGB", (side, side))
+            image = image.convert("RGBA") if image.mode in ("RGBA", "LA", "P") else image.convert("RGB")
+            image.thumbnail((side, side))
+            if image.mode == "RGBA":
+                white = Image.new("RGB", image.size, (255, 255, 255))
+                white.paste(image, mask=image.getchannel("A"))
+                image = white
+            buffer = io.BytesIO()
+            image.save(buffer, "JPEG", quality=85)
+    except (OSError, SyntaxError, ValueError, EOFError, Image.DecompressionBombError):
+        raise JeansError(f"{path.name} is damaged") from None
     return buffer.getvalue()

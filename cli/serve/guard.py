@@ -1,18 +1,29 @@
-"""The server's front door (pure ASGI middleware): who may ask, and how much they may send.
+"""The server's front door (pure ASGI middleware): who may ask, how much they may send
+and how slowly, and what a failure looks like.
 
 * ``Host`` must name this server: an IP address, ``localhost``, this machine's name or
   the ``--host`` given, with the server's port. A DNS rebinding page reaches the server
   under its own domain name, and is refused (400).
-* A ``POST`` whose ``Origin`` (or ``Sec-Fetch-Site``) says another site sent it is
-  refused (403). No CORS headers are ever sent, so other sites cannot read answers.
+* A request that another site's page sent is refused (403) before it does anything,
+  whatever its method: an ``Origin`` other than the server's own, or ``Sec-Fetch-Site``
+  ``cross-site`` or ``same-site``. The one exception is following a link to the page
+  itself (a top-level navigation to ``/`` or its static files, which do nothing). What
+  writes, computes or reads a folder's file is a ``POST`` (or is reached only by an
+  unguessable id), so even a browser that sends no ``Sec-Fetch-Site`` sends the
+  ``Origin`` that gives it away. No CORS headers are ever sent, so other sites cannot
+  read answers either.
 * A body over the upload cap is refused (413): at once from ``Content-Length``, else
-  as soon as the streamed bytes pass the cap.
+  as soon as the streamed bytes pass the cap. A body that stalls for ``body_timeout``
+  seconds is refused (408); one still arriving when the server stops, 503.
+* Every failure is one JSON line ``{"error": reason}``; an unexpected error is answered
+  500 and logged as one line (with its traceback under ``--debug``), never sent.
 * Every answer carries a strict Content-Security-Policy (the page loads nothing from
   any other host) and ``nosniff``.
 """
 
 from __future__ import annotations
 
+import asyncio
 import ipaddress
 import json
 import socket
@@ -29,7 +40,6 @@ SECURITY_HEADERS = [
     (b"x-frame-options", b"DENY"),
     (b"cross-origin-resource-policy", b"same-origin"),
 ]
-_UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 
 
 class TooLarge(Exception):
@@ -39,6 +49,14 @@ class TooLarge(Exception):
     def reason(limit: int) -> str:
         size = f"{limit / (1 << 20):.0f} MB" if limit >= 1 << 20 else f"{limit / 1024:.0f} KB"
         return f"the file is larger than the server's upload limit ({size})"
+
+
+class BodyRefused(Exception):
+    """The body stalled, or the server began stopping while it arrived."""
+
+    def __init__(self, status: int, reason: str):
+        super().__init__(reason)
+        self.status, self.reason = status, reason
 
 
 def split_host(value: str) -> tuple[str, int | None]:
@@ -95,13 +113,33 @@ def own_names(bind_host: str) -> frozenset[str]:
 
 
 class Guard:
-    """Wraps the app: Host and Origin checks, the body cap, the security headers."""
+    """Wraps the app: Host and cross-site checks, the body cap and time limit, one error
+    format, the security headers.
 
-    def __init__(self, app, *, names: Iterable[str], port: int | None, max_body: int):
+    ``pages``: paths of the static page a link from another site may open;
+    ``stopping``: an object whose ``stopped`` says the server is stopping (its pool).
+    """
+
+    def __init__(
+        self,
+        app,
+        *,
+        names: Iterable[str],
+        port: int | None,
+        max_body: int,
+        pages: frozenset[str] = frozenset(),
+        stopping=None,
+        body_timeout: float = 30.0,
+        debug: bool = False,
+    ):
         self.app = app
         self.names = frozenset(names)
         self.port = port
         self.max_body = max_body
+        self.pages = pages
+        self.stopping = stopping
+        self.body_timeout = body_timeout
+        self.debug = debug
 
     def host_allowed(self, host: str) -> bool:
         name, port = split_host(host)
@@ -111,6 +149,17 @@ class Guard:
             return False
         return is_ip(name) or name in self.names
 
+    def cross_site(self, scope, headers: dict[str, str], host: str) -> str:
+        """Why another site's page sent this request ('' if it did not)."""
+        navigation = scope["method"] == "GET" and scope["path"] in self.pages
+        navigation = navigation and headers.get("sec-fetch-mode", "navigate") == "navigate"
+        origin = headers.get("origin")
+        if origin is not None and origin != f"{scope.get('scheme', 'http')}://{host}" and not navigation:
+            return "Origin"
+        if headers.get("sec-fetch-site") in ("cross-site", "same-site") and not navigation:
+            return "Sec-Fetch-Site"
+        return ""
+
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
@@ -118,12 +167,9 @@ class Guard:
         host = headers.get("host", "")
         if not self.host_allowed(host):
             return await _refuse(send, 400, "this server answers only to its own address (Host refused)")
-        if scope["method"] in _UNSAFE_METHODS:
-            origin = headers.get("origin")
-            if origin is not None and origin != f"{scope.get('scheme', 'http')}://{host}":
-                return await _refuse(send, 403, "requests from other sites are refused (Origin)")
-            if headers.get("sec-fetch-site") == "cross-site":
-                return await _refuse(send, 403, "requests from other sites are refused (Sec-Fetch-Site)")
+        which = self.cross_site(scope, headers, host)
+        if which:
+            return await _refuse(send, 403, f"requests from other sites are refused ({which})")
         length = headers.get("content-length")
         if length is not None:
             if not length.isdigit():
@@ -135,7 +181,7 @@ class Guard:
 
         async def counted_receive():
             nonlocal received
-            message = await receive()
+            message = await self._receive(receive)
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > self.max_body:
@@ -154,13 +200,51 @@ class Guard:
         except TooLarge:
             if not started:
                 await _refuse(send, 413, self._too_large())
+        except BodyRefused as exc:
+            if not started:
+                await _refuse(send, exc.status, exc.reason)
+        except Exception as exc:  # noqa: BLE001 - a bug: one line on the terminal, never a traceback to the client
+            _log_unexpected(exc, f"{scope['method']} {scope['path'][:80]}", self.debug)
+            if not started:
+                await _refuse(send, 500, "unexpected error (the server's terminal says more)")
+
+    async def _receive(self, receive):
+        """The next body message; BodyRefused when it stalls or the server stops."""
+        waited = 0.0
+        pending = asyncio.ensure_future(receive())
+        try:
+            while True:
+                done, _ = await asyncio.wait({pending}, timeout=0.25)
+                if done:
+                    return pending.result()
+                waited += 0.25
+                if self.stopping is not None and self.stopping.stopped:
+                    raise BodyRefused(503, "the server is stopping")
+                if waited >= self.body_timeout:
+                    raise BodyRefused(408, f"the upload stalled for {self.body_timeout:g} s")
+        finally:
+            if not pending.done():
+                pending.cancel()
 
     def _too_large(self) -> str:
         return TooLarge.reason(self.max_body)
 
 
+def _log_unexpected(exc: BaseException, where: str, debug: bool) -> None:
+    import sys
+    import traceback
+
+    detail = " ".join(str(exc).split())[:200]
+    print(f"jeanscv serve: {where}: unexpected error ({type(exc).__name__}: {detail})", file=sys.stderr, flush=True)
+    if debug:
+        traceback.print_exception(exc, file=sys.stderr)
+
+
 async def _refuse(send, status: int, reason: str) -> None:
     body = json.dumps({"error": reason}).encode()
     headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]
-    await send({"type": "http.response.start", "status": status, "headers": headers + SECURITY_HEADERS})
-    await send({"type": "http.response.body", "body": body})
+    try:
+        await send({"type": "http.response.start", "status": status, "headers": headers + SECURITY_HEADERS})
+        await send({"type": "http.response.body", "body": body})
+    except (OSError, RuntimeError):  # the client has gone: nobody to tell
+        pass

@@ -6,9 +6,9 @@ from __future__ import annotations
 import asyncio
 import secrets
 import threading
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future
 from typing import Any
 
 
@@ -70,56 +70,158 @@ class Store:
 
 
 class Busy(Exception):
-    """Every worker is busy and the queue is full: answered 503 with Retry-After."""
+    """The queue is full, or a request waited its longest: answered 503 with Retry-After."""
+
+
+class Stopping(Exception):
+    """The server is stopping: waiting and running requests are answered 503 at once."""
+
+
+class TooSlow(Exception):
+    """A job ran past the per-job time limit: the request is answered 504 (the thread
+    runs on, its slot taken, until the job ends; its result is dropped)."""
 
 
 class Pool:
-    """Threads for the fits and segmentations, with a bounded queue.
+    """Worker threads for the fits and segmentations, with a fair, bounded queue.
 
-    At most ``workers`` jobs run and ``queue`` wait; one more is refused at once with
-    :class:`Busy` (the client is told to retry) instead of waiting without end.
+    * At most ``workers`` jobs run. A request's job waits its turn in arrival order
+      (first in, first out); one that finds ``queue`` jobs already waiting, or that waits
+      longer than ``max_wait`` seconds, is refused with :class:`Busy` (503 Retry-After).
+    * Background jobs (a click session made ahead) run only on a worker that no
+      request is waiting for, and at most ``background`` of them wait; the oldest is
+      dropped for a newer one.
+    * A request waits at most ``job_seconds`` for its running job (:class:`TooSlow`).
+    * :meth:`stop` answers every waiting and running request with :class:`Stopping`
+      at once. The threads are daemons: the server does not wait for a running job.
     """
 
-    def __init__(self, workers: int, queue: int):
+    def __init__(
+        self, workers: int, queue: int, *, max_wait: float = 30.0, job_seconds: float = 120.0, background: int = 4
+    ):
         self.workers = workers
-        self.limit = workers + queue
-        self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="jeanscv-serve")
-        self._pending = 0
-        self._lock = threading.Lock()
+        self.queue = queue
+        self.max_wait = max_wait
+        self.job_seconds = job_seconds
+        self.background_limit = background
+        self._lock = threading.Condition()
+        self._waiting: deque = deque()  # requests' jobs, in arrival order: (future, function, args, on_start)
+        self._background: deque = deque()
+        self._running = 0
+        self._stopped = False
+        self._stop_events: list = []  # (loop, asyncio.Event) of the loops that ran requests
+        for index in range(workers):
+            threading.Thread(target=self._work, name=f"jeanscv-serve-{index}", daemon=True).start()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stopped
+
+    def waiting(self) -> int:
+        """Requests' jobs waiting for a worker now."""
+        with self._lock:
+            return len(self._waiting)
+
+    def retry_after(self) -> int:
+        """Seconds a refused client should wait before it asks again (1-30)."""
+        with self._lock:
+            return int(min(30, max(1, 2 * (len(self._waiting) + 1) // max(1, self.workers))))
 
     async def run(self, function: Callable, *args) -> Any:
-        """``function(*args)`` in a worker thread; :class:`Busy` when the queue is full.
-
-        The slot is freed when the job ends, not when the request does: a client that
-        goes away does not free room for more work than the pool can hold.
-        """
-        return await asyncio.wrap_future(self._submit(function, *args))
-
-    def submit_background(self, function: Callable, *args) -> bool:
-        """Run ``function`` when a worker is free, if the queue has room; False if not."""
-        try:
-            self._submit(function, *args)
-        except Busy:
-            return False
-        return True
-
-    def _submit(self, function: Callable, *args):
+        """``function(*args)`` in a worker thread, in arrival order; raises :class:`Busy`,
+        :class:`TooSlow` or :class:`Stopping` as the class says."""
+        loop = asyncio.get_running_loop()
+        stop = self._stop_event(loop)
+        future: Future = Future()
+        started = asyncio.Event()
         with self._lock:
-            if self._pending >= self.limit:
+            if self._stopped:
+                raise Stopping()
+            if len(self._waiting) >= self.queue and self._running >= self.workers:
                 raise Busy()
-            self._pending += 1
-
-        def done(_future) -> None:
-            with self._lock:
-                self._pending -= 1
-
+            self._waiting.append((future, function, args, lambda: loop.call_soon_threadsafe(started.set)))
+            self._lock.notify()
+        answer = asyncio.wrap_future(future, loop=loop)
+        stopping = asyncio.ensure_future(stop.wait())
+        taken = asyncio.ensure_future(started.wait())
         try:
-            future = self._executor.submit(function, *args)
-        except RuntimeError:  # shutting down
-            done(None)
-            raise Busy() from None
-        future.add_done_callback(done)
-        return future
+            done, _ = await asyncio.wait(
+                {answer, stopping, taken}, timeout=self.max_wait, return_when="FIRST_COMPLETED"
+            )
+            if stopping in done:
+                raise Stopping()
+            if not done and future.cancel():  # still waiting after max_wait: give its place up
+                raise Busy()
+            begun = loop.time()
+            done, _ = await asyncio.wait({answer, stopping}, timeout=self.job_seconds, return_when="FIRST_COMPLETED")
+            if answer in done:
+                return answer.result()
+            if stopping in done:
+                raise Stopping()
+            raise TooSlow(f"{loop.time() - begun:.0f} s")
+        finally:
+            for waiter in (stopping, taken, answer):
+                if not waiter.done():
+                    waiter.cancel()  # the job itself runs on if it started; its result is dropped
 
-    def shutdown(self) -> None:
-        self._executor.shutdown(wait=True, cancel_futures=True)
+    def submit_background(self, function: Callable, *args) -> None:
+        """Run ``function(*args)`` when a worker has nothing a request is waiting for."""
+        with self._lock:
+            if self._stopped:
+                return
+            if len(self._background) >= self.background_limit:
+                self._background.popleft()
+            self._background.append((Future(), function, args, None))
+            self._lock.notify()
+
+    def _work(self) -> None:
+        while True:
+            with self._lock:
+                while not (self._stopped or self._waiting or self._background):
+                    self._lock.wait()
+                if self._stopped:
+                    return
+                future, function, args, on_start = (self._waiting or self._background).popleft()
+                if not future.set_running_or_notify_cancel():
+                    continue  # its request gave up waiting
+                self._running += 1
+            try:
+                if on_start is not None:
+                    on_start()
+                result = function(*args)
+            except BaseException as exc:  # noqa: BLE001 - handed to the waiting request
+                future.set_exception(exc)
+            else:
+                future.set_result(result)
+            finally:
+                with self._lock:
+                    self._running -= 1
+
+    def _stop_event(self, loop) -> asyncio.Event:
+        with self._lock:
+            for known, event in self._stop_events:
+                if known is loop:
+                    return event
+            event = asyncio.Event()
+            if self._stopped:
+                event.set()
+            self._stop_events.append((loop, event))
+            return event
+
+    def stop(self) -> None:
+        """Refuse new jobs, drop the waiting ones and answer every waiting or running
+        request with :class:`Stopping`, now; running jobs are abandoned."""
+        with self._lock:
+            self._stopped = True
+            dropped = list(self._waiting) + list(self._background)
+            self._waiting.clear()
+            self._background.clear()
+            self._lock.notify_all()
+            events = list(self._stop_events)
+        for future, *_ in dropped:
+            future.cancel()
+        for loop, event in events:
+            try:
+                loop.call_soon_threadsafe(event.set)
+            except RuntimeError:  # that loop is closed: nobody waits on it
+                pass

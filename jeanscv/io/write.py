@@ -12,6 +12,7 @@ import os
 import re
 import secrets
 import stat
+import threading
 from collections.abc import Container
 from pathlib import Path
 
@@ -59,8 +60,14 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
                 os.chmod(tmp, stat.S_IMODE(os.stat(path).st_mode))
             except FileNotFoundError:
                 pass  # a new file: the umask already chose its mode
-            os.replace(tmp, path)  # still locked: a sweeper never takes a file being renamed
+            with _writing_lock:
+                if _abandoned:
+                    raise JeansError("cannot write output: the program is stopping")
+                os.replace(tmp, path)  # still locked: a sweeper never takes a file being renamed
+                _writing.discard(tmp)
     except BaseException as exc:
+        with _writing_lock:
+            _writing.discard(tmp)
         try:
             os.unlink(tmp)
         except OSError:
@@ -69,6 +76,32 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
             raise JeansError(f"cannot write output: {_reason(exc)}") from exc
         raise
     _fsync_folder(folder)
+
+
+#: Temporary files being written now (this process), and whether writing has stopped.
+_writing: set[Path] = set()
+_writing_lock = threading.Lock()
+_abandoned = False
+
+
+def abandon_writes() -> list[Path]:
+    """Remove the temporary files that writes in progress in other threads have made,
+    and refuse every write from now on; returns what was removed.
+
+    For a process that exits without waiting for its worker threads (``jeanscv serve``
+    on Ctrl-C): no half-written file is left behind, and no new one is started.
+    """
+    global _abandoned
+    with _writing_lock:
+        _abandoned = True
+        removed = sorted(_writing)
+        _writing.clear()
+    for tmp in removed:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass  # renamed in the meantime: a complete output
+    return removed
 
 
 def _temporary_name(path: Path) -> Path:
@@ -88,7 +121,13 @@ def _create_temporary(path: Path) -> tuple[Path, int]:
             # A sweeper took it for a dead writer's between its creation and the lock.
             os.close(fd)
             continue
-        return tmp, fd
+        with _writing_lock:
+            if not _abandoned:
+                _writing.add(tmp)
+                return tmp, fd
+        os.close(fd)
+        os.unlink(tmp)
+        raise JeansError("cannot write output: the program is stopping")
     raise JeansError("cannot write output: its temporary file keeps being removed")
 
 

@@ -48,8 +48,12 @@ def prepare_lab_tables(wait: bool = False) -> None:
     with _lab_tables_lock:
         if _lab_tables is None:
             pixel = np.zeros((1, 1, 3), np.uint8)
+            # Not a daemon: the interpreter joins it (0.15 s at most) before it tears
+            # down. A daemon thread still inside cvtColor at exit aborted the process
+            # ("terminate called without an active exception"): OpenCV's C++ wrapper
+            # takes the GIL back in a destructor, where Python ends the thread.
             _lab_tables = threading.Thread(
-                target=cv2.cvtColor, args=(pixel, cv2.COLOR_RGB2LAB), name="jeanscv-lab-tables", daemon=True
+                target=cv2.cvtColor, args=(pixel, cv2.COLOR_RGB2LAB), name="jeanscv-lab-tables"
             )
             _lab_tables.start()
     if wait:
