@@ -471,3 +471,28 @@ def test_16bit_colour_tiff_and_png_with_orientation(tmp_path: Path, orientation:
         assert loaded.exif_orientation == orientation, name
         assert corner_colour(loaded.pixels, red_corner).tolist() == [254, 0, 0], name
         assert corner_colour(loaded.pixels, blue_corner).tolist() == list(BLUE), name
+
+
+def _jpeg_with_metadata(segments: int) -> bytes:
+    """A small JPEG with ``segments`` full 64 KB EXIF (APP1) segments after its SOI."""
+    import io
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.full((16, 16, 3), 90, np.uint8)).save(buffer, "JPEG")
+    jpeg = buffer.getvalue()
+    segment = b"\xff\xe1" + struct.pack(">H", 65535) + b"Exif\x00\x00" + b"\x00" * (65535 - 8)
+    return jpeg[:2] + segment * segments + jpeg[2:]
+
+
+def test_jpeg_metadata_over_the_cap_is_refused_before_pillow_reads_it(tmp_path: Path) -> None:
+    """Pillow joins EXIF segments quadratically (1,500 of them took 43 s): over 16 MB of
+    metadata the file is refused from its segment headers alone."""
+    from jeanscv.io.image import MAX_JPEG_METADATA
+
+    small = tmp_path / "some.jpg"
+    small.write_bytes(_jpeg_with_metadata(20))  # 1.3 MB: read as usual
+    assert load_image(small).pixels.shape == (16, 16, 3)
+    bomb = tmp_path / "bomb.jpg"
+    bomb.write_bytes(_jpeg_with_metadata(MAX_JPEG_METADATA // 65535 + 1))
+    with pytest.raises(JeansError, match="JPEG metadata is over 16 MB"):
+        load_image(bomb)

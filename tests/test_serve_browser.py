@@ -190,3 +190,80 @@ def test_drop_click_caption_download(server, tmp_path):
             assert problems == []
         finally:
             browser.close()
+
+
+ATTACK = """<!doctype html><title>a page on another site</title>
+<img src="{server}/api/folder/0/thumb">
+<iframe name="sink"></iframe>
+<form method="POST" action="{server}/api/folder/0/open" target="sink"><input name="x" value="1"></form>
+<form method="POST" action="{server}/api/folder/0/thumb" target="sink"></form>
+<script>
+  fetch("{server}/api/folder/0/thumb", {{ method: "POST", mode: "no-cors" }}).catch(() => {{}});
+  fetch("{server}/api/folder/0/clicks", {{ method: "POST", mode: "no-cors", headers: {{ "Content-Type": "text/plain" }},
+    body: JSON.stringify({{ photo: "x", objects: [{{ positive: [[10, 10]] }}] }}) }}).catch(() => {{}});
+  fetch("{server}/api/folder").catch(() => {{}});
+  document.forms[0].submit();
+  setTimeout(() => document.forms[1].submit(), 300);
+  setTimeout(() => (document.title = "done"), 1500);
+</script>
+"""
+
+
+def test_another_sites_page_changes_nothing_in_folder_mode(tmp_path):
+    """A page on another site (here ``localhost`` against ``127.0.0.1``: another site to
+    the browser) tries an ``<img>``, ``fetch`` and forms against folder mode: nothing is
+    written, made or opened."""
+    problem = _browser_missing()
+    assert not problem, problem
+    import http.server
+
+    import uvicorn
+    from playwright.sync_api import sync_playwright
+
+    from jeanscv_cli.serve.app import Config, create_app
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    Image.fromarray(two_objects().image).save(photos / "pets.png")
+    port = free_port()
+    uv = uvicorn.Server(
+        uvicorn.Config(create_app(Config(port=port, folder=photos)), host="127.0.0.1", port=port, log_level="error")
+    )
+    thread = threading.Thread(target=uv.run, daemon=True)
+    thread.start()
+    server = f"http://127.0.0.1:{port}"
+    page_html = ATTACK.format(server=server).encode()
+
+    class Attacker(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):  # noqa: N802 - http.server's name
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html")
+            self.end_headers()
+            self.wfile.write(page_html)
+
+        def log_message(self, *args):
+            pass
+
+    attacker = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Attacker)
+    threading.Thread(target=attacker.serve_forever, daemon=True).start()
+    try:
+        deadline = time.monotonic() + 30
+        while not uv.started:
+            assert time.monotonic() < deadline, "the server did not start"
+            time.sleep(0.05)
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"], headless=True)
+            try:
+                page = browser.new_page()
+                page.goto(f"http://localhost:{attacker.server_address[1]}/")
+                page.wait_for_function("() => document.title === 'done'", timeout=30_000)
+                page.wait_for_timeout(1500)  # any work a request had started would be writing by now
+            finally:
+                browser.close()
+        assert sorted(p.name for p in photos.iterdir()) == ["pets.png"]
+        state = uv.config.app.app.state.jeanscv
+        assert len(state.photos) == 0  # nothing was opened either
+    finally:
+        attacker.shutdown()
+        uv.should_exit = True
+        thread.join(timeout=15)

@@ -71,6 +71,8 @@ class Config:
     job_seconds: float = 120.0
     backend: str | None = None
     warm: bool = True
+    #: Longest a request body may stall before it is answered 408 (seconds).
+    body_timeout: float = 30.0
     #: Log tracebacks of unexpected errors to the terminal (never to the client).
     debug: bool = False
     extra_names: tuple[str, ...] = field(default_factory=tuple)
@@ -510,6 +512,7 @@ def create_app(config: Config) -> Guard:
         max_body=config.max_upload,
         pages=frozenset(_STATIC),
         stopping=state.pool,
+        body_timeout=config.body_timeout,
         debug=config.debug,
     )
 
