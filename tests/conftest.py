@@ -117,3 +117,24 @@ def paper_silhouette(name: str, dtype=np.float32) -> np.ndarray:
 
     with Image.open(path) as image:
         return np.asarray(image.convert("L"), dtype=dtype) / 255.0
+
+
+@pytest.fixture
+def make_client():
+    """``make_client(**config)`` -> a started test client of a fresh ``jeanscv serve``
+    app on http://127.0.0.1:8000 (no warm-up; closed after the test)."""
+    from starlette.testclient import TestClient
+
+    from jeanscv_cli.serve.app import Config, create_app
+
+    clients = []
+
+    def make(**overrides):
+        client = TestClient(create_app(Config(port=8000, warm=False, **overrides)), base_url="http://127.0.0.1:8000")
+        client.__enter__()
+        clients.append(client)
+        return client
+
+    yield make
+    for client in clients:
+        client.__exit__(None, None, None)

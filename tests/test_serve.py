@@ -19,11 +19,9 @@ from test_objects import inside_point, share_on
 from testkit.synthetic_photos import two_objects
 
 starlette = pytest.importorskip("starlette")
-from starlette.testclient import TestClient  # noqa: E402
 
 from jeanscv.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
 from jeanscv_cli.serve import engine  # noqa: E402
-from jeanscv_cli.serve.app import Config, create_app  # noqa: E402
 
 BASE = "http://127.0.0.1:8000"
 
@@ -37,23 +35,6 @@ def png_bytes(pixels: np.ndarray) -> bytes:
     buffer = io.BytesIO()
     Image.fromarray(pixels).save(buffer, "PNG")
     return buffer.getvalue()
-
-
-@pytest.fixture
-def make_client():
-    """``make_client(**config)`` -> a started TestClient on a fresh server (closed after the test)."""
-    clients = []
-
-    def make(**overrides):
-        config = Config(port=8000, warm=False, **overrides)
-        client = TestClient(create_app(config), base_url=BASE)
-        client.__enter__()
-        clients.append(client)
-        return client
-
-    yield make
-    for client in clients:
-        client.__exit__(None, None, None)
 
 
 @pytest.fixture

@@ -81,27 +81,34 @@ def test_warning_when_not_on_loopback(monkeypatch, capsys, host, warned):
     assert set(Path(tempfile.gettempdir()).glob("jeanscv-serve-*")) == folders  # made only by a started server
 
 
-def test_ctrl_c_stops_the_server_cleanly():
+def start_server(tmp_path: Path, *args: str) -> tuple[subprocess.Popen, int]:
+    """A ``jeanscv serve`` process on a free port, answering; its temporary files under ``tmp_path``."""
     port = free_port()
     server = subprocess.Popen(
-        [sys.executable, "-m", "jeanscv", "serve", "--port", str(port)],
+        [sys.executable, "-m", "jeanscv", "serve", "--port", str(port), *args],
         stderr=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
         text=True,
-        env=_env(),
+        env={**_env(), "TMPDIR": str(tmp_path)},
     )
+    deadline = time.monotonic() + 60
+    while True:
+        try:
+            connection = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+            connection.request("GET", "/api/options")
+            assert connection.getresponse().status == 200
+            connection.close()
+            return server, port
+        except OSError:
+            if time.monotonic() > deadline or server.poll() is not None:
+                server.kill()
+                raise AssertionError(f"the server did not start: {server.communicate()[1][-2000:]}") from None
+            time.sleep(0.05)
+
+
+def test_ctrl_c_stops_the_server_cleanly(tmp_path):
+    server, port = start_server(tmp_path)
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                connection = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
-                connection.request("GET", "/api/options")
-                assert connection.getresponse().status == 200
-                connection.close()
-                break
-            except OSError:
-                assert time.monotonic() < deadline and server.poll() is None, "the server did not start"
-                time.sleep(0.1)
         server.send_signal(signal.SIGINT)
         code = server.wait(timeout=30)
         err = server.stderr.read()

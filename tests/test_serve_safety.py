@@ -24,29 +24,12 @@ import pytest
 from PIL import Image
 from test_cli import _env
 from test_serve import BASE, png_bytes, scene, upload
-from test_serve_cli import free_port
+from test_serve_cli import free_port, start_server
 
 pytest.importorskip("starlette")
 
 from jeanscv_cli.serve.app import Config, client_text, create_app  # noqa: E402
 from jeanscv_cli.serve.store import Busy, Pool, Stopping, TooSlow  # noqa: E402
-
-
-@pytest.fixture
-def make_client():
-    from starlette.testclient import TestClient
-
-    clients = []
-
-    def make(**overrides):
-        client = TestClient(create_app(Config(port=8000, warm=False, **overrides)), base_url=BASE)
-        client.__enter__()
-        clients.append(client)
-        return client
-
-    yield make
-    for client in clients:
-        client.__exit__(None, None, None)
 
 
 @pytest.fixture
@@ -201,32 +184,6 @@ def test_a_huge_click_in_a_clicks_file_on_the_command_line(tmp_path, run_cli):
 
 
 # ------------------------------------------------------------- 5-7. exits
-
-
-def start_server(tmp_path: Path, *args: str) -> tuple[subprocess.Popen, int]:
-    """A ``jeanscv serve`` process on a free port, answering; its temporary files under ``tmp_path``."""
-    port = free_port()
-    env = {**_env(), "TMPDIR": str(tmp_path)}
-    server = subprocess.Popen(
-        [sys.executable, "-m", "jeanscv", "serve", "--port", str(port), *args],
-        stderr=subprocess.PIPE,
-        stdout=subprocess.DEVNULL,
-        text=True,
-        env=env,
-    )
-    deadline = time.monotonic() + 60
-    while True:
-        try:
-            connection = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
-            connection.request("GET", "/api/options")
-            assert connection.getresponse().status == 200
-            connection.close()
-            return server, port
-        except OSError:
-            if time.monotonic() > deadline or server.poll() is not None:
-                server.kill()
-                raise AssertionError(f"the server did not start: {server.communicate()[1][-2000:]}") from None
-            time.sleep(0.05)
 
 
 def stop(server: subprocess.Popen, sig: int) -> tuple[int, float, str]:
