@@ -229,3 +229,17 @@ def test_permission_denied_is_translated(tmp_path: Path, monkeypatch: pytest.Mon
     with pytest.raises(JeansError, match="^cannot write output: permission denied$"):
         write_image(tmp_path / "out.png", gradient_rgba())
     assert list(tmp_path.iterdir()) == []
+
+
+def test_abandon_writes_removes_what_is_being_written(tmp_path, monkeypatch):
+    """A process that exits without waiting for its writer threads (``jeanscv serve``)
+    leaves no temporary file, and no write starts or finishes after it."""
+    monkeypatch.setattr(write_module, "_abandoned", False)
+    monkeypatch.setattr(write_module, "_writing", set())
+    tmp, fd = write_module._create_temporary(tmp_path / "a.png")  # a write under way in another thread
+    assert tmp.exists()
+    assert write_module.abandon_writes() == [tmp] and not tmp.exists()
+    os.close(fd)
+    with pytest.raises(JeansError, match="stopping"):
+        write_module.atomic_write_bytes(tmp_path / "b.png", b"data")
+    assert list(tmp_path.iterdir()) == []

@@ -99,7 +99,11 @@ def serve(
         debug=debug,
     )
     # End here, without the interpreter's tear-down: a worker thread may still be inside
-    # OpenCV or numba with a photo the server has given up (see run.py).
+    # OpenCV or numba with a photo the server has given up (see run.py). A folder output
+    # it was writing is removed first, and no new one started.
+    from jeanscv.io.write import abandon_writes
+
+    abandon_writes()
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)

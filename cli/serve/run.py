@@ -95,8 +95,6 @@ def run_server(
     port = sock.getsockname()[1]
     import uvicorn
 
-    from jeanscv.io.write import abandon_writes
-
     from . import engine
     from .app import Config, create_app
 
@@ -150,7 +148,6 @@ def run_server(
         pass
     finally:
         state.close()
-        abandon_writes()
         sock.close()
     _say("stopped")
     return 128 + signal.SIGTERM if server.stopped_by == signal.SIGTERM else 0
