@@ -6,6 +6,6 @@ from __future__ import annotations
 from . import _command  # noqa: F401  (registers jeanscv_cli from ../cli where it is not installed)
 
 if __name__ == "__main__":
-    from jeanscv_cli.main import main
+    from jeanscv_cli._entry import main
 
     main()

@@ -405,3 +405,24 @@ def test_progress_on_a_terminal_is_one_updating_line():
     # The error gets a line of its own; the status line is cleared before the summary.
     assert "\r\x1b[Kjeanscv: in/b.png: empty file\n" in text
     assert summary.startswith("1 ok, 1 failed, 0 skipped in ") and text.endswith("\r\x1b[K" + summary + "\n")
+
+
+@pytest.mark.parametrize(
+    ("args", "sig", "status"), [([], 2, 130), ([], 15, 143), (["serve"], 2, 0), (["serve"], 15, 143)]
+)
+def test_an_interrupt_while_the_command_starts_is_quiet(args, sig, status):
+    """Ctrl-C or SIGTERM before the command takes its signals over (imports, option
+    parsing): its status and nothing printed. It was click's "Aborted!" with status 1, or
+    a traceback of the import it stopped. The signal comes where the command's option
+    parsing would be, right after the entry point's first step."""
+    script = (
+        "import os, sys, time\n"
+        "import jeanscv_cli._entry as entry\n"
+        f"sys.argv = ['jeanscv', *{args!r}]\n"
+        "entry.exit_at_once_on_interrupt(0 if sys.argv[1:2] == ['serve'] else 130)\n"
+        f"os.kill(os.getpid(), {sig})\n"
+        "time.sleep(10)\n"
+        "print('not stopped')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=_env(), timeout=60)
+    assert (done.returncode, done.stdout, done.stderr) == (status, "", "")
