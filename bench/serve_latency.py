@@ -35,7 +35,7 @@ from PIL import Image
 
 from bench.clicks import SHARED, photo_pairs, upscale
 from bench.serve_client import Server
-from jeanscv.silhouette.interactive import simulated_click
+from jeanscv.subject.interactive import simulated_click
 
 
 def outline_mask(objects: list, size: tuple[int, int]) -> np.ndarray:

@@ -21,7 +21,7 @@ from testkit.synthetic_photos import two_objects
 starlette = pytest.importorskip("starlette")
 from starlette.testclient import TestClient  # noqa: E402
 
-from jeanscv.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
+from jeanscv.subject.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
 from jeanscv_cli.serve import engine  # noqa: E402
 from jeanscv_cli.serve.app import Config, create_app  # noqa: E402
 
@@ -158,7 +158,7 @@ def test_good_photo_then_clicks_then_downloads(client):
     clicks = client.get(downloads["clicks"])
     assert clicks.headers["content-disposition"] == 'attachment; filename="two.clicks.json"'
     replay = Clicks.single([point], image_size=(800, 500))
-    from jeanscv.clicks import loads_clicks
+    from jeanscv.subject.clicks import loads_clicks
 
     assert loads_clicks(clicks.content) == replay
     # The automatic result has no clicks file to give.
@@ -167,7 +167,7 @@ def test_good_photo_then_clicks_then_downloads(client):
 
 
 def test_auto_and_the_click_session_cut_the_hypotheses_once(client, monkeypatch):
-    from jeanscv.silhouette import photo as segmentation
+    from jeanscv.subject import photo as segmentation
 
     cuts = []
     hypotheses = segmentation.hypotheses
