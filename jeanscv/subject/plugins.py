@@ -85,7 +85,7 @@ def _reason(exc: BaseException) -> str:
 
 def _builtin_method(name: str) -> SilhouetteMethod:
     def extract(image: np.ndarray, **options: Any):
-        from .subject.photo import segment
+        from .photo import segment
 
         return segment(image, name, **options)
 
@@ -163,7 +163,7 @@ def segment_with(name: str, image: np.ndarray, **options: Any):
     (``segment(image, "mask", mask=...)``: specks removed, holes filled, contour traced)
     and the result carries the plugin's name as its ``method``.
     """
-    from .subject.photo import segment
+    from .photo import segment
 
     if name in BUILTIN_SILHOUETTE_METHODS or name == "mask":
         return segment(image, name, **options)
