@@ -75,12 +75,15 @@ def server_temp(client) -> Path:
 def test_page_and_static_files(client):
     page = client.get("/")
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
-    assert b'src="/static/app.js"' in page.content and b'href="/static/style.css"' in page.content
-    for path, media in (("/static/app.js", "text/javascript"), ("/static/style.css", "text/css")):
+    assert b'type="module" src="/static/app.js"' in page.content and b'href="/static/style.css"' in page.content
+    # Every ES module beside app.js is served as JavaScript (the server serves a fixed list).
+    scripts = [f"/static/{path.name}" for path in sorted((Path(engine.__file__).parent / "static").glob("*.js"))]
+    assert len(scripts) > 1
+    for path, media in [*((script, "text/javascript") for script in scripts), ("/static/style.css", "text/css")]:
         response = client.get(path)
         assert response.status_code == 200 and response.headers["content-type"].startswith(media)
-    # Nothing from another host: no absolute URL in the page, its script or its style.
-    for path in ("/", "/static/app.js", "/static/style.css"):
+    # Nothing from another host: no absolute URL in the page, its scripts or its style.
+    for path in ("/", *scripts, "/static/style.css"):
         text = client.get(path).text
         assert "http://" not in text.replace("http://www.w3.org/2000/svg", "") and "https://" not in text
     csp = page.headers["content-security-policy"]
