@@ -275,3 +275,21 @@ def test_every_package_is_installed():
     listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     folders = {m for m, path in module_files().items() if path.name == "__init__.py"}
     assert folders == listed
+
+
+def test_old_paths_import_the_moved_modules():
+    """The paths from before the stage folders that the docs showed, and that plugins use,
+    import the module itself (one object: its state and its classes are the same)."""
+    import importlib
+
+    import jeanscv
+
+    for old, new in jeanscv._MOVED.items():
+        module = importlib.import_module(old)
+        assert module is importlib.import_module(new)
+        assert module.__name__ == new and module.__spec__.name == new
+    from jeanscv.fitting.garments import Garment as Moved
+    from jeanscv.garments import Garment
+
+    assert Garment is Moved
+    assert jeanscv.fit.__module__ == "jeanscv.pipeline"  # the function, not the fitting package
