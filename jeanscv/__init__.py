@@ -51,15 +51,22 @@ _LAZY = {
 __all__ = ["__version__", *_LAZY]
 
 #: Import paths from before the stage folders that the docs showed and plugins use:
-#: old name -> the module it now is (the same module object, not a copy).
+#: old name -> the module it now is (the same module object, not a copy). A package's
+#: modules follow it: ``jeanscv.silhouette.photo`` is ``jeanscv.subject.photo``.
 _MOVED = {
     "jeanscv.garments": "jeanscv.fitting.garments",
     "jeanscv.clicks": "jeanscv.subject.clicks",
     "jeanscv.distributed": "jeanscv.run.distributed",
     "jeanscv.silhouette": "jeanscv.subject",
-    "jeanscv.silhouette.photo": "jeanscv.subject.photo",
-    "jeanscv.silhouette.interactive": "jeanscv.subject.interactive",
 }
+
+
+def _moved(name: str) -> str | None:
+    """The module an old path of :data:`_MOVED` (or a module of an old package) is now."""
+    for old, new in _MOVED.items():
+        if name == old or name.startswith(old + "."):
+            return new + name[len(old) :]
+    return None
 
 
 class _MovedFinder:
@@ -71,10 +78,10 @@ class _MovedFinder:
         self._specs: dict[str, Any] = {}  # old name -> the module's own spec
 
     def find_spec(self, name, path=None, target=None):
-        return importlib.machinery.ModuleSpec(name, self) if name in _MOVED else None
+        return importlib.machinery.ModuleSpec(name, self) if _moved(name) else None
 
     def create_module(self, spec):
-        module = importlib.import_module(_MOVED[spec.name])
+        module = importlib.import_module(_moved(spec.name))
         self._specs[spec.name] = module.__spec__  # the import system sets the alias' spec on it: put it back
         return module
 

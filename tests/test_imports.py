@@ -284,7 +284,10 @@ def test_old_paths_import_the_moved_modules():
 
     import jeanscv
 
-    for old, new in jeanscv._MOVED.items():
+    moved = {**jeanscv._MOVED, "jeanscv.silhouette.photo": "jeanscv.subject.photo"}
+    moved["jeanscv.silhouette.interactive"] = "jeanscv.subject.interactive"
+    moved["jeanscv.silhouette.scene"] = "jeanscv.subject.scene"  # a package's modules follow it
+    for old, new in moved.items():
         module = importlib.import_module(old)
         assert module is importlib.import_module(new)
         assert module.__name__ == new and module.__spec__.name == new
