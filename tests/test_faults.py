@@ -414,7 +414,7 @@ def test_kernel_cache_of_a_read_only_install(tmp_path, monkeypatch):
     file where the folder should be."""
     from jeanscv.fitting._fast.cache import _subpath, kernel_cache_dir
 
-    kernels = tmp_path / "site-packages" / "jeanscv" / "_fast"
+    kernels = tmp_path / "site-packages" / "jeanscv" / "fitting" / "_fast"
     kernels.mkdir(parents=True)
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home-cache"))

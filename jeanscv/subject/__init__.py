@@ -3,8 +3,8 @@
 Takes decoded pixels (from :mod:`jeanscv.io`), and clicks where a person gave them;
 gives one framed :class:`~jeanscv.subject.silhouettes.Silhouette` per object (the mask,
 its contour, the 256x256 canvas ``S`` the fit takes, and the framing back to the photo).
-Public names: :func:`~jeanscv.subject.extraction.extract_silhouette(s)
-<jeanscv.subject.extraction.extract_silhouettes>`, :class:`Silhouette`,
+Public names: :func:`~jeanscv.subject.extraction.extract_silhouette` and
+:func:`~jeanscv.subject.extraction.extract_silhouettes`, :class:`Silhouette`,
 :func:`~jeanscv.subject.silhouettes.read_svg`, :func:`~jeanscv.subject.silhouettes.load_mask`,
 :func:`~jeanscv.subject.drawing.silhouette_from_drawing`, the clicks model
 (:mod:`jeanscv.subject.clicks`), segmentation (:func:`jeanscv.subject.photo.segment`,
