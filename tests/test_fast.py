@@ -249,7 +249,7 @@ def _fresh(code: str) -> str:
 def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
     code = """
         import numpy as np
-        from jeanscv import _fast
+        from jeanscv.fitting import _fast
         from jeanscv.fitting._fast.objective import descend, objective
         from jeanscv.fitting.adam import BatchAdam
         from jeanscv.fitting.garments import JEANS
@@ -270,7 +270,7 @@ def test_cached_kernels_load_without_numbas_registry_refresh_and_fit_the_same():
         import sys
         import numpy as np
         {refresh}
-        from jeanscv import _fast
+        from jeanscv.fitting import _fast
         from jeanscv.fitting.fitter import fit
         from jeanscv.fitting.garments import JEANS
         _fast.load_kernels()
