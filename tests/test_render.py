@@ -167,7 +167,7 @@ def test_winding_integral_signs_and_multiplicity() -> None:
 
 @pytest.mark.xfail(
     reason="known limitation: min(|integral of W|, 1) cancels +1 and -1 lobes inside a pixel where "
-    "a self-intersecting polygon's edges cross (documented in jeanscv/render.py)",
+    "a self-intersecting polygon's edges cross (documented in jeanscv/fitting/render.py)",
     strict=True,
 )
 def test_bowtie_crossing_pixel_gets_both_lobes() -> None:
