@@ -15,10 +15,10 @@ import argparse
 import numpy as np
 
 from bench.presets_report import load_shapes
-from jeanscv.checks import rule_report
-from jeanscv.fitter import fit
-from jeanscv.garments import JEANS
-from jeanscv.posture import posture
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import fit
+from jeanscv.fitting.garments import JEANS
+from jeanscv.fitting.posture import posture
 from testkit.synthetic import random_creature
 
 

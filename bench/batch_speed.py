@@ -132,7 +132,7 @@ _STAGES = (
     "mark('fit')\n"
     "image = api.composite(loaded.pixels, result, silhouette)\n"
     "mark('denim')\n"
-    "from jeanscv.checks import rule_report\n"
+    "from jeanscv.fitting.checks import rule_report\n"
     "rule_report(result.vertices, silhouette.canvas)\n"
     "mark('rule checks')\n"
     "data = encode_image(image, 'JPEG', quality=95, exif=loaded.exif, icc_profile=loaded.icc_profile)\n"

@@ -28,8 +28,8 @@ import numpy as np
 from PIL import Image
 
 from jeanscv.io.image import load_image
-from jeanscv.silhouette.consensus import iou
-from jeanscv.silhouette.interactive import ClickSession, simulated_click
+from jeanscv.subject.consensus import iou
+from jeanscv.subject.interactive import ClickSession, simulated_click
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "real_photos"

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from bench.fit_speed import SHARED, shapes
-from jeanscv.fitter import fit
+from jeanscv.fitting.fitter import fit
 
 #: (label, fit options)
 WAYS = (

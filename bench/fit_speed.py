@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from jeanscv.fitter import fit
+from jeanscv.fitting.fitter import fit
 from testkit.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from jeanscv.checks import rule_report
-from jeanscv.compositing import render_silhouette_figure
-from jeanscv.fitter import fit
-from jeanscv.garments import GARMENTS
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import fit
+from jeanscv.fitting.garments import GARMENTS
+from jeanscv.paint.compositing import render_silhouette_figure
 from testkit.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"

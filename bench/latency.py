@@ -74,11 +74,11 @@ IMPORTS = (
     ("OpenCV", "import cv2"),
     ("the library and command line", "import jeanscv_cli.main, jeanscv.pipeline"),
     ("numba", "import numba"),
-    ("the kernels' module", "import jeanscv._fast.kernels"),
+    ("the kernels' module", "import jeanscv.fitting._fast.kernels"),
     (
         "loading the cached kernels",
-        "from jeanscv._fast import Objective; from jeanscv.garments import JEANS; import numpy as np;"
-        "from jeanscv.adam import BatchAdam;"
+        "from jeanscv.fitting._fast import Objective; from jeanscv.fitting.garments import JEANS; import numpy as np;"
+        "from jeanscv.fitting.adam import BatchAdam;"
         "k = Objective(JEANS, 'all', {'coverage': 1.0}); k(JEANS.template[None], np.ones((16, 16)), 0.25);"
         "k.descend(BatchAdam(JEANS.template[None] / 16, 0.01), np.ones((16, 16)), 1, 0.25)",
     ),
@@ -185,7 +185,7 @@ def stages(folder: Path) -> dict[str, float]:
 def fit_seconds() -> float:
     """Median CPU seconds of the default fit over the paper's silhouettes (or the zoo)."""
     from bench.fit_speed import shapes, timed
-    from jeanscv.fitter import fit
+    from jeanscv.fitting.fitter import fit
 
     silhouettes = shapes()
     fit(next(iter(silhouettes.values())), iterations=5)  # kernels loaded

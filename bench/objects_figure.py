@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image
 
 from jeanscv.api import apply_jeans
-from jeanscv.compositing import polygon_coverage_patch
+from jeanscv.paint.compositing import polygon_coverage_patch
 from testkit.synthetic_photos import two_objects
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from jeanscv.checks import rule_report
-from jeanscv.compositing import render_silhouette_figure
-from jeanscv.fitter import fit
-from jeanscv.posture import posture_name, tilt_degrees
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import fit
+from jeanscv.fitting.posture import posture_name, tilt_degrees
+from jeanscv.paint.compositing import render_silhouette_figure
 from testkit.synthetic import silhouette_zoo
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "silhouettes"

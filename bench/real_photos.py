@@ -95,7 +95,7 @@ def main() -> None:
         sys.exit(f"no photos in {REAL_PHOTOS}: nothing to measure")
 
     import jeanscv
-    from jeanscv.posture import tilt_degrees
+    from jeanscv.fitting.posture import tilt_degrees
 
     paths = photo_paths()
     if args.only:
@@ -131,7 +131,7 @@ def main() -> None:
             jeans = polygon_mask(fit.vertices_image, reference.shape)
             share = float((jeans & reference).sum() / max(jeans.sum(), 1))
             covered = float((jeans & reference).sum() / max(reference.sum(), 1))
-            rules = jeanscv.checks.rule_report(fit.vertices, silhouette.canvas, fit.garment)
+            rules = jeanscv.fitting.checks.rule_report(fit.vertices, silhouette.canvas, fit.garment)
             on_subject.append(share)
             tilt = tilt_degrees(fit.vertices, fit.garment)
             cells += [f"{share:.2f}", f"{covered:.2f}", f"{tilt:.0f}", "6/6" if rules.passed else "fail"]

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from jeanscv.silhouette.photo import segment
+from jeanscv.subject.photo import segment
 from testkit.synthetic_photos import iou, photo_set
 
 

@@ -4,7 +4,7 @@
 
 Each photo of ``../shared/real_photos`` is upscaled (bicubic) to ``--width`` pixels
 wide (4000: 9-16 MP, 12 MP for a 4:3 photo) and segmented by
-``jeanscv.silhouette.photo.segment(image, "auto")`` with OpenCV on one thread;
+``jeanscv.subject.photo.segment(image, "auto")`` with OpenCV on one thread;
 the figure is ``time.process_time()`` around that call (it counts every thread of the
 process), the best of ``--repeat`` runs. Prints one row per photo and the median; the
 issue's target is 0.6 s.
@@ -33,14 +33,14 @@ ROOT = Path(__file__).resolve().parents[1]
 TARGET_SECONDS = 0.6
 # (label, module, attribute path): functions whose own-thread CPU time is one stage.
 STAGES = (
-    ("scene", "jeanscv.silhouette.scene", "Scene.__init__"),
-    ("saliency labels", "jeanscv.silhouette.consensus", "hypothesis_labels"),
-    ("hypothesis cuts", "jeanscv.silhouette.photo", "grabcut_or_none"),
-    ("border-colour cut", "jeanscv.silhouette.photo", "_grabcut_hypothesis"),
-    ("threshold", "jeanscv.silhouette.photo", "_threshold"),
-    ("choose", "jeanscv.silhouette.consensus", "choose"),
-    ("refine", "jeanscv.silhouette.photo", "refine"),
-    ("working size (all)", "jeanscv.silhouette.photo", "_segment_photo"),
+    ("scene", "jeanscv.subject.scene", "Scene.__init__"),
+    ("saliency labels", "jeanscv.subject.consensus", "hypothesis_labels"),
+    ("hypothesis cuts", "jeanscv.subject.photo", "grabcut_or_none"),
+    ("border-colour cut", "jeanscv.subject.photo", "_grabcut_hypothesis"),
+    ("threshold", "jeanscv.subject.photo", "_threshold"),
+    ("choose", "jeanscv.subject.consensus", "choose"),
+    ("refine", "jeanscv.subject.photo", "refine"),
+    ("working size (all)", "jeanscv.subject.photo", "_segment_photo"),
 )
 
 
@@ -89,7 +89,7 @@ def main() -> None:
 
     cv2.setNumThreads(1)
     from jeanscv.errors import JeansError
-    from jeanscv.silhouette import photo
+    from jeanscv.subject import photo
 
     spent: dict[str, float] = defaultdict(float)
     if args.stages:

@@ -35,7 +35,8 @@ from PIL import Image
 
 from bench.clicks import SHARED, photo_pairs, upscale
 from bench.serve_client import Server
-from jeanscv.silhouette.interactive import simulated_click
+from jeanscv.subject.interactive import simulated_click
+from jeanscv_cli.serve.app import _SCRIPTS
 
 
 def outline_mask(objects: list, size: tuple[int, int]) -> np.ndarray:
@@ -48,12 +49,16 @@ def outline_mask(objects: list, size: tuple[int, int]) -> np.ndarray:
     return mask.astype(bool)
 
 
+#: What the page loads: the HTML, its ES modules (app.js and those it imports), the style.
+PAGE = ("/", *(f"/static/{name}" for name in _SCRIPTS), "/static/style.css")
+
+
 def page_load(server: Server, rounds: int = 20) -> tuple[float, int]:
     seconds, size = [], 0
     for _ in range(rounds):
         began = time.perf_counter()
         size = 0
-        for path in ("/", "/static/app.js", "/static/style.css"):
+        for path in PAGE:
             status, _, body = server.request("GET", path)
             assert status == 200, path
             size += len(body)
@@ -83,7 +88,9 @@ def main() -> None:
     server = Server()
     try:
         load, weight = page_load(server)
-        print(f"page: {load * 1000:.1f} ms (median of 20: /, app.js, style.css), {weight / 1024:.1f} KB")
+        print(
+            f"page: {load * 1000:.1f} ms (median of 20: /, {len(_SCRIPTS)} scripts, style.css), {weight / 1024:.1f} KB"
+        )
         drops, clicks, firsts, to_first = [], [], [], []
         for name, data, reference in photos:
             dropped = began = time.perf_counter()

@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
-from jeanscv.checks import rule_report
-from jeanscv.fitter import fit
-from jeanscv.posture import posture_name, tilt_degrees
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import fit
+from jeanscv.fitting.posture import posture_name, tilt_degrees
 from testkit.synthetic import random_creature
 
 

@@ -4,7 +4,7 @@
     python -m bench.upright [--only photos,synthetic,silhouettes,shapes,paper] [--overlays DIR]
 
 Counts, per posture, the fits that are upright (tilt <= 30 degrees, see
-``jeanscv.posture.tilt_degrees``) and pass all six rule checks on:
+``jeanscv.fitting.posture.tilt_degrees``) and pass all six rule checks on:
 
 - the real photos of ``../shared/real_photos`` through the real pipeline (decode,
   segmentation, framing, fit; each photo segmented once, fitted both ways);
@@ -30,10 +30,10 @@ from PIL import Image
 
 from bench.presets_report import PAPER_SHAPES, SHARED, load_shapes
 from jeanscv.api import draw_figure
-from jeanscv.checks import rule_report
-from jeanscv.fitter import fit
-from jeanscv.posture import posture_name, tilt_degrees
-from jeanscv.render import polygon_coverage
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import fit
+from jeanscv.fitting.posture import posture_name, tilt_degrees
+from jeanscv.fitting.render import polygon_coverage
 from testkit.real_photo_set import photo_paths
 from testkit.synthetic import random_creature
 from testkit.synthetic_photos import photo_set

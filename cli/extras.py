@@ -95,7 +95,7 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
     the bottom shows the progress through the iterations; the last frame is held.
     Needs ``result.fit.trajectory``: ``(iterations + 1, N, 2)`` canvas pixels.
     """
-    from jeanscv.figures import draw_figure, draw_garment
+    from jeanscv.paint.figures import draw_figure, draw_garment
 
     fit, silhouette = result.fit, result.silhouette
     trajectory = np.asarray(fit.trajectory, dtype=np.float64)

@@ -75,7 +75,7 @@ def _parse_points(ctx: click.Context, param: click.Parameter, values: tuple[str,
 def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> None:
     if not value or ctx.resilient_parsing:
         return
-    from jeanscv.presets import DEFAULT_PRESET, PRESETS
+    from jeanscv.fitting.presets import DEFAULT_PRESET, PRESETS
 
     for name, preset in PRESETS.items():
         mark = " (default)" if name == DEFAULT_PRESET else ""
@@ -313,10 +313,10 @@ def _main(
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
     _start_workers_early(list(paths), jobs)
-    from jeanscv._fast import kernel_cache_dir, kernels_cached
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
-    from jeanscv.runner import one_line
+    from jeanscv.fitting._fast import kernel_cache_dir, kernels_cached
+    from jeanscv.run.runner import one_line
 
     from .discover import collect
     from .progress import Progress
@@ -376,9 +376,9 @@ def _start_workers_early(paths: list[str], jobs: int | None) -> None:
 def _check_names(ctx: click.Context, values: dict) -> None:
     """``--preset`` and ``--garment`` name something that exists, else a usage error."""
     from jeanscv.errors import JeansError
+    from jeanscv.fitting.presets import get_preset
     from jeanscv.plugins import get_garment
-    from jeanscv.presets import get_preset
-    from jeanscv.runner import one_line
+    from jeanscv.run.runner import one_line
 
     for lookup, value, hint in (
         (get_preset, values["preset"], "'--preset'"),

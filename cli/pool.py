@@ -1,7 +1,7 @@
 """The ``-j`` worker processes: a pool of workers, and what happens when one dies.
 
 On Linux the workers are forked from a fork server that has loaded the library and the
-cached kernels once (:mod:`jeanscv._forkserver`), started as soon as the command line
+cached kernels once (:mod:`jeanscv.run._forkserver`), started as soon as the command line
 says several inputs may come (:func:`start_early`), while the parent finds its files.
 Elsewhere they are spawned, each a fresh interpreter. Each worker gets its share of the
 cores (``worker.init_worker``). A worker that dies (killed, out of memory, a crash in a
@@ -65,7 +65,7 @@ def _context():
         from multiprocessing import forkserver
 
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["jeanscv._forkserver"])
+        context.set_forkserver_preload(["jeanscv.run._forkserver"])
         try:
             forkserver.ensure_running()
             return context

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from jeanscv.options import JeansOptions
-from jeanscv.runner import encode_picture, failure_reason, report_text
+from jeanscv.run.runner import encode_picture, failure_reason, report_text
 
 from .discover import Job
 from .runs import claim, stop_with_parent
@@ -60,7 +60,7 @@ class Terminated(BaseException):
 def saved_clicks(job: Job, options: JeansOptions) -> Path | None:
     """The clicks saved beside a photo (``NAME.clicks.json``, by ``jeanscv serve``), which
     it uses unless ``--point``, ``--clicks`` or ``--mask`` say what the subject is."""
-    from jeanscv.clicks import sidecar_path
+    from jeanscv.subject.clicks import sidecar_path
 
     if options.points or options.clicks is not None or options.mask is not None:
         return None
@@ -107,7 +107,7 @@ def picture(result, options: JeansOptions):
     image = add_captions(result.image, options.top, options.bottom)
     if options.side_by_side:
         if result.kind == "silhouette":
-            from jeanscv.figures import figure
+            from jeanscv.paint.figures import figure
 
             original = figure(result.silhouette)
         else:
@@ -119,7 +119,7 @@ def picture(result, options: JeansOptions):
 def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> None:
     from jeanscv import pipeline
     from jeanscv.io.write import atomic_write_bytes
-    from jeanscv.silhouettes import silhouette_contours
+    from jeanscv.subject.silhouettes import silhouette_contours
 
     targets = wanted_outputs(job, options, overwrite)
     saved = saved_clicks(job, options)

@@ -1,5 +1,5 @@
 """Where a fit runs: the device (``cpu``, ``cuda``) and, on the CPU, the backend
-(``fast``: the numba kernels of :mod:`jeanscv._fast`; ``torch``: the reference).
+(``fast``: the numba kernels of :mod:`jeanscv.fitting._fast`; ``torch``: the reference).
 
 Cheap to import: it looks for numba without importing it, and imports torch only to ask
 about CUDA when CUDA is asked for.

@@ -2,7 +2,7 @@
 values that the command line's choices are made from.
 
 The command line, :func:`jeanscv.pipeline.apply_jeans` and the Dask runner
-(:mod:`jeanscv.distributed`) all build one :class:`JeansOptions` and pass it along.
+(:mod:`jeanscv.run.distributed`) all build one :class:`JeansOptions` and pass it along.
 A field is one line: its name, type and default, and for a fixed set of values its
 ``choices`` (checked when the options are made). Cheap to import (no numpy): the
 command's ``--help`` reads the choices from here.
@@ -21,8 +21,8 @@ from .errors import JeansError
 if TYPE_CHECKING:
     import numpy as np
 
-    from .clicks import Clicks
-    from .garments import Garment
+    from .fitting.garments import Garment
+    from .subject.clicks import Clicks
 
 #: What an input is: ``auto`` tells silhouette drawings (and SVGs) from photos.
 KINDS = ("auto", "silhouette", "photo")
@@ -47,7 +47,7 @@ def _choice(default: str, choices: tuple[str, ...], label: str) -> Any:
 class JeansOptions:
     """How to put jeans on one input: fitting, silhouette, look and decoding.
 
-    Fitting: ``garment`` (a name, a ``.toml`` path or a :class:`~jeanscv.garments.Garment`),
+    Fitting: ``garment`` (a name, a ``.toml`` path or a :class:`~jeanscv.fitting.garments.Garment`),
     ``preset``, ``posture``, ``iterations``, ``seed``, ``starts`` (None: the preset's),
     ``device`` (``cpu``, ``cuda``, ``auto``), ``backend`` (``fast``, ``torch``; None:
     :func:`jeanscv.device.resolve_backend` chooses).
@@ -56,9 +56,9 @@ class JeansOptions:
     ``threshold`` and ``rect`` (for the ``threshold`` and ``grabcut`` methods), ``mask``
     (an ``(H, W)`` array or an image file: the object, instead of segmenting), ``objects``;
     clicks that fix the subject (pixels of the photo as displayed; see
-    :func:`jeanscv.extraction.extract_silhouettes`): ``points`` and ``background_points``
+    :func:`jeanscv.subject.extraction.extract_silhouettes`): ``points`` and ``background_points``
     (one object's positive and negative clicks) and ``clicks`` (several objects': a
-    :class:`~jeanscv.clicks.Clicks` or a clicks file).
+    :class:`~jeanscv.subject.clicks.Clicks` or a clicks file).
 
     Look: ``style``, ``clip`` (paint only on the object); ``top`` and ``bottom``
     captions, ``side_by_side`` and ``gif_frames`` shape the command's pictures.

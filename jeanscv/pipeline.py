@@ -13,23 +13,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import fitter
 from .device import resolve_backend, resolve_device
-from .drawing import silhouette_from_drawing
 from .errors import JeansError
-from .extraction import extract_silhouettes, object_clicks
-from .figures import composite, figure
-from .fitter import FitResult
-from .garments import Garment
+from .fitting import fitter
+from .fitting.fitter import FitResult
+from .fitting.garments import Garment
 from .io.svg import SVG_EXTENSIONS
 from .options import JeansOptions
+from .paint.figures import composite, figure
 from .plugins import get_garment
 from .report import FittedObject, JeansResult
-from .silhouettes import Silhouette, load_mask, read_svg, silhouette_from_alpha
+from .subject.drawing import silhouette_from_drawing
+from .subject.extraction import extract_silhouettes, object_clicks
+from .subject.silhouettes import Silhouette, load_mask, read_svg, silhouette_from_alpha
 
 if TYPE_CHECKING:  # decoding imports Pillow, on first use
     from .io.image import LoadedImage
-    from .silhouette.photo import SharedHypotheses
+    from .subject.photo import SharedHypotheses
 
 
 def load_image(path: str | os.PathLike, max_pixels: int = 100_000_000, raw_half_size: bool = False) -> LoadedImage:
@@ -57,7 +57,7 @@ def fit(
 
     ``posture``: ``upright`` (the default preset hangs the garment upright unless no
     upright placement passes the rule checks) or ``any`` (every posture competes).
-    Returns a :class:`jeanscv.fitter.FitResult`: vertices in canvas pixels (and in image
+    Returns a :class:`jeanscv.fitting.fitter.FitResult`: vertices in canvas pixels (and in image
     pixels, ``vertices_image``, for a Silhouette), per-term losses, the loss history.
     ``backend``: ``"fast"`` (numba kernel, CPU) or ``"torch"`` (the reference, and the
     only one on CUDA); None: ``$JEANSCV_BACKEND``, else fast on the CPU when numba is
@@ -90,7 +90,7 @@ def prepare_input(
     """Decode and segment an input: ``(silhouettes, kind, pixels, loaded_image)``.
 
     ``options`` (or the defaults) with ``overrides`` (:class:`JeansOptions`' names) say how.
-    ``shared``: a :class:`~jeanscv.silhouette.photo.SharedHypotheses` that keeps auto's
+    ``shared``: a :class:`~jeanscv.subject.photo.SharedHypotheses` that keeps auto's
     hypotheses of the photo for a click session of ``pixels`` (a server clicks on it next).
     Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``,
     ``background_points`` and ``clicks`` are pixels of the photo as displayed, also for a
@@ -154,7 +154,7 @@ def _clicks(options: JeansOptions, shown: tuple[int, int]):
     """Every object's clicks of ``options`` (``points`` and ``background_points`` first,
     then ``clicks``), checked against the photo's size as displayed, ``shown`` =
     (width, height)."""
-    from .clicks import Clicks
+    from .subject.clicks import Clicks
 
     clicks = options.clicks
     found = Clicks(
@@ -166,7 +166,7 @@ def _clicks(options: JeansOptions, shown: tuple[int, int]):
 
 def _read_clicks(path: str | os.PathLike):
     """A clicks file, or JeansError naming it and the reason."""
-    from .clicks import read_clicks
+    from .subject.clicks import read_clicks
 
     try:
         return read_clicks(path)
@@ -176,7 +176,7 @@ def _read_clicks(path: str | os.PathLike):
 
 def _to_decoded(points, original_size: tuple[int, int], size: tuple[int, int]) -> list[tuple[float, float]]:
     """Points in pixels of the photo as displayed -> pixels of its (reduced) decoded copy."""
-    from .silhouette.objects import check_point
+    from .subject.objects import check_point
 
     width, height = original_size
     scale = np.array([size[0] / width, size[1] / height])
@@ -195,19 +195,19 @@ def apply_jeans(
     photos get denim painted on at full resolution. ``objects="all"`` gives every
     separate object of a photo its own garment; ``points`` and ``background_points``
     ((x, y) pixels of the photo as displayed) are one object's positive and negative
-    clicks, ``clicks`` (a :class:`jeanscv.clicks.Clicks` or a clicks file) several
+    clicks, ``clicks`` (a :class:`jeanscv.subject.clicks.Clicks` or a clicks file) several
     objects' (see :func:`extract_silhouettes`); ``mask`` may be an array or an image file. RAW files are decoded at the camera's full size unless ``raw_half_size``.
     ``posture``: ``upright`` or ``any`` (see :func:`fit`). ``backend``: as in :func:`fit`.
     """
-    from . import _fast
-    from .presets import get_preset
+    from .fitting import _fast
+    from .fitting.presets import get_preset
 
     options = (options or JeansOptions()).replace(**overrides)
     get_preset(options.preset).with_posture(options.posture)  # a bad preset fails before the decoding
     if resolve_backend(options.backend, resolve_device(options.device)) == "fast":
         _fast.warm_up()  # numba's set-up overlaps decoding and segmentation
     if not _is_svg_path(source):
-        from .silhouette.scene import prepare_lab_tables
+        from .subject.scene import prepare_lab_tables
 
         prepare_lab_tables()  # segmentation's colour tables, built on the other core while the photo decodes
     silhouettes, resolved_kind, pixels, loaded = prepare_input(source, options)

@@ -13,6 +13,9 @@ The entry point's name is the garment's or method's name. Built-in names win ove
 plugins; a plugin that fails to import or returns the wrong thing is skipped with a
 :class:`PluginWarning`, so one broken plugin never breaks jeanscv. Look-ups are cached
 for the life of the process (:func:`refresh` forgets them).
+
+The silhouette methods live in the subject stage (:mod:`jeanscv.subject.plugins`, which
+extraction asks for a plugin's mask); their names are re-exported here.
 """
 
 from __future__ import annotations
@@ -22,53 +25,25 @@ import functools
 import importlib
 import importlib.metadata
 import os
-import warnings
-from collections.abc import Callable
-from typing import Any
-
-import numpy as np
 
 from .errors import JeansError
-from .garments import GARMENTS, Garment
-from .options import SILHOUETTE_METHODS
+from .fitting.garments import GARMENTS, Garment
+from .subject.plugins import (
+    BUILTIN_SILHOUETTE_METHODS,
+    SILHOUETTE_GROUP,
+    PluginWarning,
+    _entry_points,
+    _plugin_silhouette_methods,
+    _reason,
+    _skip,
+    available_silhouette_methods,
+    extract_mask,
+    get_silhouette_method,
+    is_plugin_silhouette_method,
+    segment_with,
+)
 
 GARMENT_GROUP = "jeanscv.garments"
-SILHOUETTE_GROUP = "jeanscv.silhouettes"
-
-#: Built-in segmentation methods offered by name (``mask`` needs a mask, so it is not one).
-BUILTIN_SILHOUETTE_METHODS = SILHOUETTE_METHODS
-
-SilhouetteMethod = Callable[..., Any]
-
-
-class PluginWarning(UserWarning):
-    """A plugin was skipped (it failed to load or is not what its group expects)."""
-
-
-def _origin(entry_point: importlib.metadata.EntryPoint) -> str:
-    dist = getattr(entry_point, "dist", None)
-    return f"{dist.name} {dist.version}" if dist is not None else entry_point.value
-
-
-def _skip(kind: str, entry_point: importlib.metadata.EntryPoint, reason: str) -> None:
-    warnings.warn(
-        f"jeanscv: skipping {kind} plugin {entry_point.name!r} ({_origin(entry_point)}): {reason}",
-        PluginWarning,
-        stacklevel=3,
-    )
-
-
-def _entry_points(group: str, builtins: tuple[str, ...] | dict, kind: str) -> list[importlib.metadata.EntryPoint]:
-    """The group's entry points, first of each name only, built-in names left out."""
-    seen: dict[str, importlib.metadata.EntryPoint] = {}
-    for entry_point in importlib.metadata.entry_points(group=group):
-        if entry_point.name in builtins:
-            _skip(kind, entry_point, "a built-in has that name")
-        elif entry_point.name in seen:
-            _skip(kind, entry_point, f"already provided by {_origin(seen[entry_point.name])}")
-        else:
-            seen[entry_point.name] = entry_point
-    return list(seen.values())
 
 
 def _garment_from(entry_point: importlib.metadata.EntryPoint) -> Garment:
@@ -90,27 +65,6 @@ def _plugin_garments() -> tuple[tuple[str, Garment], ...]:
         except Exception as exc:  # noqa: BLE001 - any plugin failure only skips that plugin
             _skip("garment", entry_point, _reason(exc))
     return tuple(found)
-
-
-@functools.cache
-def _plugin_silhouette_methods() -> tuple[tuple[str, SilhouetteMethod], ...]:
-    found = []
-    for entry_point in _entry_points(SILHOUETTE_GROUP, BUILTIN_SILHOUETTE_METHODS + ("mask",), "silhouette"):
-        try:
-            extract = entry_point.load()
-        except Exception as exc:  # noqa: BLE001 - any plugin failure only skips that plugin
-            _skip("silhouette", entry_point, _reason(exc))
-            continue
-        if not callable(extract):
-            _skip("silhouette", entry_point, f"it gave {type(extract).__name__}, not a callable")
-            continue
-        found.append((entry_point.name, extract))
-    return tuple(found)
-
-
-def _reason(exc: BaseException) -> str:
-    detail = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {detail}" if detail else type(exc).__name__
 
 
 def refresh() -> None:
@@ -141,7 +95,7 @@ def load_garment(path_or_name: str | os.PathLike) -> Garment:
 
 def get_garment(name: str | os.PathLike | Garment) -> Garment:
     """Resolve a garment: a :class:`Garment` as is, then a built-in name, then a plugin
-    garment (entry-point group ``jeanscv.garments``), then a path to a ``.toml`` file.
+    garment (entry-point group ``jeanscv.fitting.garments``), then a path to a ``.toml`` file.
 
     Built-ins win over plugins of the same name; a name that is none of these raises
     :class:`JeansError` listing the known names.
@@ -162,97 +116,6 @@ def get_garment(name: str | os.PathLike | Garment) -> Garment:
             known = sorted({*GARMENTS, *plugins})
             raise JeansError(f"unknown garment {name!r} (known: {', '.join(known)}; or a .toml file)")
     return Garment.from_toml(name)
-
-
-def _builtin_method(name: str) -> SilhouetteMethod:
-    def extract(image: np.ndarray, **options: Any):
-        from .silhouette.photo import segment
-
-        return segment(image, name, **options)
-
-    extract.__name__ = f"segment_{name}"
-    extract.__doc__ = f"The built-in {name!r} segmentation (:func:`jeanscv.silhouette.photo.segment`)."
-    return extract
-
-
-def available_silhouette_methods() -> dict[str, SilhouetteMethod]:
-    """Every silhouette method by name: built-ins, then plugins.
-
-    Each value is ``extract(image, **options)`` taking an ``(H, W, 3|4) uint8`` image and
-    returning an ``(H, W)`` mask or an object with a ``.mask`` attribute (built-ins
-    return a :class:`jeanscv.silhouette.photo.Segmentation`).
-    """
-    builtins = {name: _builtin_method(name) for name in BUILTIN_SILHOUETTE_METHODS}
-    return {**builtins, **dict(_plugin_silhouette_methods())}
-
-
-def get_silhouette_method(name: str) -> SilhouetteMethod:
-    """The ``extract`` callable of a built-in or plugin silhouette method."""
-    methods = available_silhouette_methods()
-    try:
-        return methods[name]
-    except KeyError:
-        raise JeansError(f"unknown silhouette method {name!r} (known: {', '.join(methods)})") from None
-
-
-def is_plugin_silhouette_method(name: str) -> bool:
-    """True for a method that a plugin provides (not one of ``segment``'s own)."""
-    return name in dict(_plugin_silhouette_methods())
-
-
-def extract_mask(name: str, image: np.ndarray, **options: Any) -> np.ndarray:
-    """Run a silhouette method and return its mask as ``(H, W) bool``.
-
-    Masks may be bool, float in [0, 1] (object where >= 0.5) or integer 0/1 or 0..255
-    (object where >= 128). Anything a plugin raises other than :class:`JeansError`
-    becomes one, naming the method.
-    """
-    extract = get_silhouette_method(name)
-    image = np.asarray(image)
-    try:
-        result = extract(image, **options)
-    except JeansError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - a plugin's bug is reported as this input's failure
-        raise JeansError(f"silhouette method {name!r} failed: {_reason(exc)}") from exc
-    return _as_mask(getattr(result, "mask", result), image.shape[:2], name)
-
-
-def _as_mask(mask: object, shape: tuple[int, ...], name: str) -> np.ndarray:
-    try:
-        array = np.asarray(mask)
-    except Exception:  # noqa: BLE001 - whatever it returned, it is not a mask
-        array = np.asarray(None)
-    if array.shape != tuple(shape):
-        raise JeansError(f"silhouette method {name!r} gave a mask of shape {array.shape}, not {tuple(shape)}")
-    if array.dtype == bool:
-        return array
-    if not (np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)):
-        raise JeansError(f"silhouette method {name!r} gave a {array.dtype} mask, not a boolean or numeric one")
-    if np.issubdtype(array.dtype, np.floating):
-        if not np.isfinite(array).all():
-            raise JeansError(f"silhouette method {name!r} gave a mask with NaN or infinite values")
-        return array >= 0.5
-    # 0/1 masks and 0..255 masks are both common; anything above 1 is read as 0..255.
-    return array >= (1 if array.max(initial=0) <= 1 else 128)
-
-
-def segment_with(name: str, image: np.ndarray, **options: Any):
-    """A :class:`jeanscv.silhouette.photo.Segmentation` from any method, plugins included.
-
-    Built-ins go straight to ``segment``; a plugin's mask is cleaned like a user mask
-    (``segment(image, "mask", mask=...)``: specks removed, holes filled, contour traced)
-    and the result carries the plugin's name as its ``method``.
-    """
-    from .silhouette.photo import segment
-
-    if name in BUILTIN_SILHOUETTE_METHODS or name == "mask":
-        return segment(image, name, **options)
-    mask = extract_mask(name, image, **options)
-    result = segment(image, "mask", mask=mask)
-    result.method = name
-    result.details["plugin"] = name
-    return result
 
 
 __all__ = [

@@ -8,11 +8,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .checks import rule_report
-from .fitter import FitResult
+from .fitting.checks import rule_report
+from .fitting.fitter import FitResult
+from .fitting.posture import posture_name, tilt_degrees
 from .geometry import CANVAS_SIZE
-from .posture import posture_name, tilt_degrees
-from .silhouettes import Silhouette, box_of
+from .subject.silhouettes import Silhouette, box_of
 
 if TYPE_CHECKING:  # decoding imports Pillow; a result only holds what it decoded
     from .io.image import LoadedImage

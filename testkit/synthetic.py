@@ -225,7 +225,7 @@ def random_creature(seed: int) -> np.ndarray:
     Used to check the default preset on shapes nobody drew by hand. Framed like
     every mask jeanscv fits (bounding box centred, longer side 90% of the canvas).
     """
-    from jeanscv.framing import frame_mask
+    from jeanscv.subject.framing import frame_mask
 
     rng = np.random.default_rng(seed)
     img = _canvas()

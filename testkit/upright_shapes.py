@@ -2,7 +2,7 @@
 upright on them (tests and ``bench/upright.py``; not part of the package).
 
 Each is drawn with the zoo's pens (:mod:`testkit.synthetic`) in a 256x192 picture and
-framed like a photo's mask (:func:`jeanscv.framing.frame_mask`), so wide things sit in
+framed like a photo's mask (:func:`jeanscv.subject.framing.frame_mask`), so wide things sit in
 the middle of the canvas with empty bands above and below, as in a fitted photo.
 """
 
@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from jeanscv.framing import frame_mask
+from jeanscv.subject.framing import frame_mask
 from testkit import synthetic
 
 _SCALE = 0.25  # the shapes are written in pixels of a 1024x768 picture

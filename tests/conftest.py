@@ -53,7 +53,7 @@ def compiled_kernels():
     from jeanscv.device import fast_available
 
     if fast_available():
-        from jeanscv import _fast
+        from jeanscv.fitting import _fast
 
         _fast.load_kernels()
 

@@ -346,7 +346,7 @@ def run_load_image(case: tuple[str, bytes]) -> object:
 
 
 def run_load_mask(case: tuple[str, bytes]) -> object:
-    from jeanscv.silhouettes import load_mask
+    from jeanscv.subject.silhouettes import load_mask
 
     name, data = case
     mask = load_mask(_SCRATCH.write(name, data), max_pixels=FUZZ_MAX_PIXELS)
@@ -594,7 +594,7 @@ def generate_clicks_case(rng: random.Random) -> tuple[bytes, tuple[int, int]]:
 
 
 def run_clicks(case: tuple[bytes, tuple[int, int]]) -> object:
-    from jeanscv.clicks import loads_clicks
+    from jeanscv.subject.clicks import loads_clicks
 
     text, size = case
     clicks = loads_clicks(text)
@@ -608,7 +608,7 @@ def run_clicks(case: tuple[bytes, tuple[int, int]]) -> object:
 
 
 def run_read_clicks(case: tuple[bytes, tuple[int, int]]) -> object:
-    from jeanscv.clicks import read_clicks
+    from jeanscv.subject.clicks import read_clicks
 
     return read_clicks(_SCRATCH.write("case.clicks.json", case[0]))
 
@@ -635,7 +635,7 @@ def generate_garment_case(rng: random.Random) -> bytes:
 
 
 def run_garment(case: bytes) -> object:
-    from jeanscv.garments import Garment
+    from jeanscv.fitting.garments import Garment
 
     return Garment.from_toml(_SCRATCH.write("case.toml", case))
 

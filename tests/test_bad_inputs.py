@@ -270,7 +270,7 @@ def test_diverged_fit_is_one_line(tmp_path, run_cli, monkeypatch, iterations):
     or at the final scoring (0 iterations)."""
     import functools
 
-    from jeanscv import fitter, objectives
+    from jeanscv.fitting import fitter, objectives
 
     real_objective = fitter.make_objective
 

@@ -162,7 +162,7 @@ def test_svg_sidecar_matches_the_fit(tmp_path, run_cli):
 
 
 def test_gif_has_the_requested_frames(tmp_path, run_cli):
-    from jeanscv.fitter import FitResult
+    from jeanscv.fitting.fitter import FitResult
 
     if "trajectory" not in FitResult.__dataclass_fields__:
         pytest.xfail("FitResult.trajectory is not in the library yet")

@@ -291,7 +291,7 @@ def test_worker_setup_shares_cores_and_keeps_freed_memory():
     assert done.returncode == 0, done.stderr
     default, kept, cv2_threads, torch_loaded = done.stdout.split()
     # OpenCV gets the worker's share of the cores, not all of them; torch is not
-    # loaded at all (a torch fit sets its own thread count, jeanscv.fitter.fit).
+    # loaded at all (a torch fit sets its own thread count, jeanscv.fitting.fitter.fit).
     assert (cv2_threads, torch_loaded) == ("1", "False")
     # By default a freed 64-MB array goes back to the system (and its pages are zeroed
     # again when the next photo needs them); a worker keeps it for the next file.
@@ -317,8 +317,8 @@ def test_the_fork_server_loads_the_library_and_the_cached_kernels_once(compiled_
     server before it forks them, and frozen out of the garbage collector's traversals."""
     code = (
         "import gc, sys\n"
-        "import jeanscv._forkserver\n"
-        "from jeanscv._fast import objective, raster\n"
+        "import jeanscv.run._forkserver\n"
+        "from jeanscv.fitting._fast import objective, raster\n"
         "loaded = [len(k.overloads) for k in (objective.objective, objective.descend, raster.polygon_coverage_rows)]\n"
         "print(all(loaded), 'jeanscv_cli.worker' in sys.modules, 'jeanscv.pipeline' in sys.modules,"
         " gc.get_freeze_count() > 0)\n"

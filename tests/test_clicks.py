@@ -14,9 +14,9 @@ import pytest
 from PIL import Image
 
 from jeanscv.api import apply_jeans, extract_silhouettes
-from jeanscv.clicks import Clicks, ObjectClicks, loads_clicks, read_clicks, sidecar_path, write_clicks
 from jeanscv.errors import JeansError
-from jeanscv.silhouette.interactive import ClickSession
+from jeanscv.subject.clicks import Clicks, ObjectClicks, loads_clicks, read_clicks, sidecar_path, write_clicks
+from jeanscv.subject.interactive import ClickSession
 
 FIT = dict(iterations=30, starts=2)
 CLI_FIT = ("--iterations", "30", "--starts", "2")
@@ -95,7 +95,7 @@ def test_the_same_clicks_give_the_same_mask():
 
 
 def test_auto_and_a_session_cut_the_hypotheses_once_with_the_same_results(monkeypatch):
-    from jeanscv.silhouette import photo
+    from jeanscv.subject import photo
 
     image = figure()[0]
     alone = photo.segment(image)

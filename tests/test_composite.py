@@ -1,4 +1,4 @@
-"""Tests for jeanscv.compositing and jeanscv.denim: painting jeans on photos and the paper's figures.
+"""Tests for jeanscv.paint.compositing and jeanscv.paint.denim: painting jeans on photos and the paper's figures.
 
 The synthetic photo is a grey ellipse (a left-to-right gradient) on a plain light
 background, with its exact mask; the jeans are the template scaled onto it so the
@@ -17,14 +17,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from jeanscv.compositing import (
-    FLAT_BLUE,
-    composite_jeans,
-    polygon_coverage_patch,
-    render_silhouette_figure,
-)
 from jeanscv.errors import JeansError
-from jeanscv.garments import JEANS
+from jeanscv.fitting.garments import JEANS
+from jeanscv.paint.compositing import FLAT_BLUE, composite_jeans, polygon_coverage_patch, render_silhouette_figure
 
 H, W = 300, 400
 CENTRE, AXES = (200.0, 150.0), (170.0, 85.0)
@@ -395,7 +390,7 @@ def test_any_polygon_composites_without_error(vertices, channels, style, clip) -
 def test_large_garment_boxes_render_reduced_and_paint_in_strips(monkeypatch):
     """Boxes over DENIM_MAX_PIXELS take the bounded-memory path: same clip guarantees,
     denim colours, and strips that join without seams."""
-    import jeanscv.compositing as compositing
+    import jeanscv.paint.compositing as compositing
 
     rng = np.random.default_rng(3)
     image = (90 + 60 * rng.random((300, 400, 3))).astype(np.uint8)
@@ -421,7 +416,7 @@ def test_large_garment_boxes_render_reduced_and_paint_in_strips(monkeypatch):
 def test_denim_bytes_do_not_depend_on_the_work_windows(monkeypatch, channels: int) -> None:
     """The per-pixel work runs in windows around the painted pixels; how the box is cut
     into them (and so how far each strip's noise is drawn) must not change a byte."""
-    import jeanscv.denim as denim
+    import jeanscv.paint.denim as denim
 
     rng = np.random.default_rng(7)
     height, width = 700, 560  # a box of three noise strips

@@ -14,11 +14,11 @@ import pytest
 import torch
 from conftest import write_silhouette_png
 
-from jeanscv.checks import rule_report
-from jeanscv.fitter import fit
-from jeanscv.garments import JEANS
-from jeanscv.loss import jalgorithm_terms
-from jeanscv.render import polygon_coverage, stroke_coverage
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import fit
+from jeanscv.fitting.garments import JEANS
+from jeanscv.fitting.loss import jalgorithm_terms
+from jeanscv.fitting.render import polygon_coverage, stroke_coverage
 from testkit.synthetic import silhouette_zoo
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")

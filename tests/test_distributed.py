@@ -16,9 +16,9 @@ import pytest
 from PIL import Image
 
 from jeanscv.api import apply_jeans
-from jeanscv.distributed import output_paths, run_on_dask
 from jeanscv.errors import JeansError
 from jeanscv.io.write import encode_image, output_extension
+from jeanscv.run.distributed import output_paths, run_on_dask
 from testkit.synthetic import silhouette_zoo
 
 SHAPES = ["person", "dog", "bottle"]

@@ -17,16 +17,16 @@ import pytest
 import torch
 from conftest import ROOT, paper_silhouette
 
-from jeanscv import _fast
-from jeanscv.adam import BatchAdam
 from jeanscv.device import fast_available
-from jeanscv.fitter import _area_downsampled, fit
-from jeanscv.garments import JEANS
-from jeanscv.loss import TERM_NAMES, jalgorithm_terms, weighted_total
-from jeanscv.objectives import blurred
-from jeanscv.posture import posture
-from jeanscv.presets import get_preset
-from jeanscv.render import polygon_coverage, polygon_edges, stroke_coverage
+from jeanscv.fitting import _fast
+from jeanscv.fitting.adam import BatchAdam
+from jeanscv.fitting.fitter import _area_downsampled, fit
+from jeanscv.fitting.garments import JEANS
+from jeanscv.fitting.loss import TERM_NAMES, jalgorithm_terms, weighted_total
+from jeanscv.fitting.objectives import blurred
+from jeanscv.fitting.posture import posture
+from jeanscv.fitting.presets import get_preset
+from jeanscv.fitting.render import polygon_coverage, polygon_edges, stroke_coverage
 from testkit.synthetic import silhouette_zoo
 
 pytestmark = pytest.mark.skipif(not fast_available(), reason="numba is not installed")
@@ -147,7 +147,7 @@ def test_whole_fits_take_the_same_path(preset, names, chaotic):
     step 100: bench/backend_agreement.py), and so is the default one on the spider
     (rounding gaps grow from step ~45, 4 px at the end), so there only the value is
     compared, within 5% (the spider's two objectives differ by 2%)."""
-    from jeanscv.checks import rule_report
+    from jeanscv.fitting.checks import rule_report
 
     for name, silhouette in silhouette_zoo(names).items():
         fast, reference = (fit(silhouette, preset, backend=b) for b in ("fast", "torch"))
@@ -169,7 +169,7 @@ def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, 
     give the same bits: the same histories, prunings and vertices."""
     import functools
 
-    from jeanscv import fitter, objectives
+    from jeanscv.fitting import fitter, objectives
 
     silhouette = silhouette_zoo(["kangaroo"])["kangaroo"]
     fused = fit(silhouette, preset, iterations=40)
@@ -188,8 +188,8 @@ def test_the_step_loop_in_the_kernel_equals_steps_taken_one_by_one(monkeypatch, 
 
 
 def test_the_kernels_adam_step_gives_the_same_bits_as_adam_update():
-    from jeanscv._fast.objective import adam_step
-    from jeanscv.adam import adam_update
+    from jeanscv.fitting._fast.objective import adam_step
+    from jeanscv.fitting.adam import adam_update
 
     rng = np.random.default_rng(3)
     params, grad = rng.normal(size=(5, 8, 2)), rng.normal(size=(5, 8, 2)) * 10.0 ** rng.integers(-8, 4, (5, 8, 2))
@@ -206,8 +206,8 @@ def test_the_kernels_adam_step_gives_the_same_bits_as_adam_update():
 def test_a_fit_compiles_one_specialisation_of_each_big_kernel():
     """A literal argument (``True``, a constant width) makes numba compile a kernel once
     more; the objective alone is a quarter of the first run's compiling."""
-    from jeanscv._fast import objective as kernels
-    from jeanscv._fast import raster
+    from jeanscv.fitting._fast import objective as kernels
+    from jeanscv.fitting._fast import raster
 
     fit(silhouette_zoo(["blob_a"])["blob_a"], iterations=3)
     _fast.Objective(JEANS, "all", {"coverage": 1.0})(JEANS.template[None], np.ones((64, 64)))
@@ -218,7 +218,7 @@ def test_a_fit_compiles_one_specialisation_of_each_big_kernel():
 def test_the_step_loop_stops_where_every_start_diverges_and_skips_diverged_starts():
     import functools
 
-    from jeanscv.objectives import descend_by_steps, make_objective
+    from jeanscv.fitting.objectives import descend_by_steps, make_objective
 
     silhouette = silhouette_zoo(["dog"])["dog"].astype(np.float64)
     kernel = _fast.Objective(JEANS, "all", _weights("paper"))
@@ -249,10 +249,10 @@ def _fresh(code: str) -> str:
 def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
     code = """
         import numpy as np
-        from jeanscv import _fast
-        from jeanscv._fast.objective import descend, objective
-        from jeanscv.adam import BatchAdam
-        from jeanscv.garments import JEANS
+        from jeanscv.fitting import _fast
+        from jeanscv.fitting._fast.objective import descend, objective
+        from jeanscv.fitting.adam import BatchAdam
+        from jeanscv.fitting.garments import JEANS
         kernel = _fast.Objective(JEANS, "all", {"coverage": 1.0})
         kernel(JEANS.template[None], np.ones((256, 256)))
         kernel.descend(BatchAdam(JEANS.template[None] / 256, 0.01), np.ones((256, 256)), 2, 2.5)
@@ -270,9 +270,9 @@ def test_cached_kernels_load_without_numbas_registry_refresh_and_fit_the_same():
         import sys
         import numpy as np
         {refresh}
-        from jeanscv import _fast
-        from jeanscv.fitter import fit
-        from jeanscv.garments import JEANS
+        from jeanscv.fitting import _fast
+        from jeanscv.fitting.fitter import fit
+        from jeanscv.fitting.garments import JEANS
         _fast.load_kernels()
         refreshed = "numba.np.arraymath" in sys.modules
         yy, xx = np.mgrid[:256, :256]
@@ -314,8 +314,8 @@ def test_kernels_cached_looks_for_the_step_loop_index(tmp_path, monkeypatch):
     """A fresh install has no index of the step loop (its first fit compiles for about
     half a minute, which the command line announces); with NUMBA_CACHE_DIR, numba's
     folder for these kernels under it is looked into."""
-    from jeanscv._fast import kernels_cached
-    from jeanscv._fast.cache import _subpath
+    from jeanscv.fitting._fast import kernels_cached
+    from jeanscv.fitting._fast.cache import _subpath
 
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     assert kernels_cached(tmp_path) is False
@@ -334,8 +334,8 @@ def test_the_second_compiling_process_compiles_what_a_fit_calls():
     objective passes: a fit's signatures must include them."""
     from numba import njit
 
-    from jeanscv._fast import ahead
-    from jeanscv._fast import objective as kernels
+    from jeanscv.fitting._fast import ahead
+    from jeanscv.fitting._fast import objective as kernels
 
     _fast.Objective(JEANS, "all", {"coverage": 1.0})(JEANS.template[None], np.ones((64, 64)))
     # Compiling the objective afresh (its cached copy names no callee) has numba
@@ -346,13 +346,13 @@ def test_the_second_compiling_process_compiles_what_a_fit_calls():
 
 
 def test_one_second_compiling_process_per_cache_folder(tmp_path, monkeypatch):
-    from jeanscv._fast import ahead
+    from jeanscv.fitting._fast import ahead
 
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     launched = []
     monkeypatch.setattr(ahead.subprocess, "Popen", lambda command, **_: launched.append(command))
     assert ahead.start() and not ahead.start()
-    assert launched == [[sys.executable, "-m", "jeanscv._fast.ahead"]]
+    assert launched == [[sys.executable, "-m", "jeanscv.fitting._fast.ahead"]]
     (lock,) = tmp_path.rglob("ahead.lock")
     os.utime(lock, (0, 0))  # left by a killed process
     assert ahead.start() and len(launched) == 2
@@ -361,14 +361,14 @@ def test_one_second_compiling_process_per_cache_folder(tmp_path, monkeypatch):
 def test_command_line_announces_a_first_compilation(tmp_path, run_cli, monkeypatch):
     from conftest import write_silhouette_png
 
-    import jeanscv._fast
+    import jeanscv.fitting._fast
 
     source = write_silhouette_png(tmp_path / "shape.png")
     notice = (
         "compiling the fit kernels for this installation, once (about 25 s on two free cores); later runs load them"
     )
     for cached, shown in ((False, True), (True, False), (None, False)):
-        monkeypatch.setattr(jeanscv._fast, "kernels_cached", lambda cached=cached: cached)
+        monkeypatch.setattr(jeanscv.fitting._fast, "kernels_cached", lambda cached=cached: cached)
         result = run_cli(source, "-o", tmp_path / "out", "--iterations", "2", "--backend", "fast", "--overwrite")
         assert result.exit_code == 0, result.stderr
         assert (notice in result.stderr.splitlines()) == shown

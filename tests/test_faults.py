@@ -412,9 +412,9 @@ def test_kernel_cache_of_a_read_only_install(tmp_path, monkeypatch):
     cache, else (a service account without a home) a private temporary folder that
     NUMBA_CACHE_DIR is set to. 'Cannot be written' is made real for root too: a regular
     file where the folder should be."""
-    from jeanscv._fast.cache import _subpath, kernel_cache_dir
+    from jeanscv.fitting._fast.cache import _subpath, kernel_cache_dir
 
-    kernels = tmp_path / "site-packages" / "jeanscv" / "_fast"
+    kernels = tmp_path / "site-packages" / "jeanscv" / "fitting" / "_fast"
     kernels.mkdir(parents=True)
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home-cache"))
@@ -439,7 +439,7 @@ def test_kernel_cache_of_a_read_only_install(tmp_path, monkeypatch):
 
 def test_private_cache_folder_is_not_taken_from_someone_else(tmp_path, monkeypatch):
     """A folder of that name another user could write is not trusted (code is loaded from it)."""
-    from jeanscv._fast.cache import _private_temporary_root
+    from jeanscv.fitting._fast.cache import _private_temporary_root
 
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
     planted = tmp_path / f"jeanscv-numba-{os.getuid()}"

@@ -9,12 +9,12 @@ from conftest import PAPER_SHAPES, SHARED, paper_silhouette
 from PIL import Image
 from reference import loss_terms_ref
 
-from jeanscv.checks import rule_report, self_intersects
 from jeanscv.errors import JeansError
-from jeanscv.fitter import fit, initial_placements
-from jeanscv.garments import JEANS
-from jeanscv.posture import posture
-from jeanscv.render import polygon_coverage
+from jeanscv.fitting.checks import rule_report, self_intersects
+from jeanscv.fitting.fitter import fit, initial_placements
+from jeanscv.fitting.garments import JEANS
+from jeanscv.fitting.posture import posture
+from jeanscv.fitting.render import polygon_coverage
 from testkit.synthetic import ZOO, silhouette_zoo
 
 
@@ -142,7 +142,7 @@ def test_rule_checks_on_hand_made_cases():
 
 
 def test_batch_adam_matches_torch_adam():
-    from jeanscv.adam import BatchAdam
+    from jeanscv.fitting.adam import BatchAdam
 
     start = torch.tensor([[1.0, -2.0], [0.5, 3.0]], dtype=torch.float64)
     ours = BatchAdam(start.numpy().copy(), lr=1e-2)
@@ -157,7 +157,7 @@ def test_batch_adam_matches_torch_adam():
 
 
 def test_posture_classes():
-    from jeanscv.posture import tilt_degrees
+    from jeanscv.fitting.posture import tilt_degrees
 
     centre = JEANS.template[list(JEANS.waist)].mean(axis=0)
 
@@ -174,9 +174,9 @@ def test_posture_classes():
 def test_a_blur_schedule_runs_coarse_to_fine(zoo):
     import dataclasses
 
-    from jeanscv.fitter import blur_schedule
-    from jeanscv.objectives import blurred as blur
-    from jeanscv.presets import get_preset
+    from jeanscv.fitting.fitter import blur_schedule
+    from jeanscv.fitting.objectives import blurred as blur
+    from jeanscv.fitting.presets import get_preset
 
     assert blur_schedule((4.0, 2.0), 9) == [4.0] * 3 + [2.0] * 3 + [0.0] * 3
     silhouette = zoo["disc"].astype(np.float64)
@@ -194,7 +194,7 @@ def test_a_blur_schedule_runs_coarse_to_fine(zoo):
 def test_screening_canvas_must_divide_the_canvas(zoo):
     import dataclasses
 
-    from jeanscv.presets import get_preset
+    from jeanscv.fitting.presets import get_preset
 
     odd = dataclasses.replace(get_preset("default"), screen_canvas=100)
     with pytest.raises(JeansError, match="screen_canvas"):
@@ -204,8 +204,8 @@ def test_screening_canvas_must_divide_the_canvas(zoo):
 def test_pruning_keeps_the_best_upright_start_for_rule_selection():
     import dataclasses
 
-    from jeanscv.fitter import _survivors
-    from jeanscv.presets import get_preset
+    from jeanscv.fitting.fitter import _survivors
+    from jeanscv.fitting.presets import get_preset
 
     rules = dataclasses.replace(get_preset("default"), keep=2)
     objective = dataclasses.replace(rules, select="objective")

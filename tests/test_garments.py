@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import torch
 
-from jeanscv.compositing import render_silhouette_figure
 from jeanscv.errors import JeansError
-from jeanscv.fitter import fit, initial_placements, preset_placements
-from jeanscv.garments import GARMENTS, JEANS, SHORTS, SKIRT, Garment, polygon_area
-from jeanscv.loss import jalgorithm_terms, weighted_total
+from jeanscv.fitting.fitter import fit, initial_placements, preset_placements
+from jeanscv.fitting.garments import GARMENTS, JEANS, SHORTS, SKIRT, Garment, polygon_area
+from jeanscv.fitting.loss import jalgorithm_terms, weighted_total
+from jeanscv.fitting.presets import get_preset
+from jeanscv.paint.compositing import render_silhouette_figure
 from jeanscv.plugins import get_garment, load_garment
-from jeanscv.presets import get_preset
 from testkit.synthetic import silhouette_zoo
 
 #: A six-vertex garment (neckline 2-3 and hem 5-0 open), as a TOML file would give it.

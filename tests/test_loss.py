@@ -1,4 +1,4 @@
-"""Tests of jeanscv.loss: the paper's seven terms against hand-made exact cases and an
+"""Tests of jeanscv.fitting.loss: the paper's seven terms against hand-made exact cases and an
 independent 8x8 supersampled numpy reference (tests/reference.py), their gradients,
 batching, and the weighted module.
 """
@@ -13,8 +13,8 @@ from conftest import float64_tensor as _t
 from reference import loss_terms_ref, rigid_ref
 
 from jeanscv.errors import JeansError
-from jeanscv.garments import JEANS, Garment
-from jeanscv.loss import (
+from jeanscv.fitting.garments import JEANS, Garment
+from jeanscv.fitting.loss import (
     PAPER_WEIGHTS,
     JalgorithmLoss,
     affine_residual_operator,
@@ -322,7 +322,7 @@ def test_terms_gradcheck_small_canvas(term: str) -> None:
 @pytest.mark.parametrize("inter_pairs", ["all", "non_adjacent"])
 def test_loss_module_gradcheck_small_canvas(inter_pairs: str) -> None:
     """The nn.Module form, batched (B, N, 2) -> (B,), with the default preset's weights too."""
-    from jeanscv.presets import get_preset
+    from jeanscv.fitting.presets import get_preset
 
     s = _t(_smooth_silhouette(32, (15.3, 17.1), (9.0, 12.0), 2.0))
     rng = np.random.default_rng(2)

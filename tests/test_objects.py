@@ -13,10 +13,10 @@ import pytest
 from PIL import Image
 
 from jeanscv.api import apply_jeans, extract_silhouettes
-from jeanscv.compositing import polygon_coverage_patch
 from jeanscv.errors import JeansError, OptionError
 from jeanscv.geometry import mask_box
-from jeanscv.silhouette.objects import check_point, object_at, split_objects
+from jeanscv.paint.compositing import polygon_coverage_patch
+from jeanscv.subject.objects import check_point, object_at, split_objects
 from testkit.synthetic_photos import iou, two_objects
 
 FIT = dict(iterations=40, starts=4)

@@ -21,7 +21,7 @@ import pytest
 
 from jeanscv import plugins
 from jeanscv.errors import JeansError
-from jeanscv.garments import GARMENTS
+from jeanscv.fitting.garments import GARMENTS
 from jeanscv.plugins import get_garment
 
 try:

@@ -9,10 +9,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from jeanscv.framing import frame_mask
-from jeanscv.garments import JEANS
-from jeanscv.loss import PAPER_WEIGHTS, jalgorithm_terms, weighted_total
-from jeanscv.render import polygon_coverage, stroke_coverage
+from jeanscv.fitting.garments import JEANS
+from jeanscv.fitting.loss import PAPER_WEIGHTS, jalgorithm_terms, weighted_total
+from jeanscv.fitting.render import polygon_coverage, stroke_coverage
+from jeanscv.subject.framing import frame_mask
 
 SIZE = 24
 coordinates = st.one_of(

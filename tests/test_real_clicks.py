@@ -1,6 +1,6 @@
 """Clicks on real photographs against reference masks (``../shared/real_photos``;
 skipped when the folder is absent), with the standard simulated user
-(:func:`jeanscv.silhouette.interactive.simulated_click`).
+(:func:`jeanscv.subject.interactive.simulated_click`).
 
 The floors sit about 0.05 under what the click session reaches today after one and
 after three clicks (``python -m bench.clicks`` prints the table): they catch
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from jeanscv.io.image import load_image
-from jeanscv.silhouette.interactive import ClickSession, simulated_click
+from jeanscv.subject.interactive import ClickSession, simulated_click
 from testkit.real_photo_set import photo_paths, reference_mask
 from testkit.synthetic_photos import iou
 

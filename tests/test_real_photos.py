@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from jeanscv.io.image import load_image
-from jeanscv.silhouette.photo import segment
+from jeanscv.subject.photo import segment
 from testkit.real_photo_set import photo_paths, reference_mask
 from testkit.synthetic_photos import iou
 

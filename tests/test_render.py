@@ -1,4 +1,4 @@
-"""Accuracy and gradient tests of jeanscv.render against independent references.
+"""Accuracy and gradient tests of jeanscv.fitting.render against independent references.
 
 The references (tests/reference.py) point-sample each pixel 16x16 times: the fill by
 the non-zero winding rule, a stroke by the distance to its segment. The renderer
@@ -17,7 +17,7 @@ import torch
 from conftest import float64_tensor as _t
 from reference import capsule_coverage_ref, polygon_coverage_ref
 
-from jeanscv.render import (
+from jeanscv.fitting.render import (
     PolygonRasterizer,
     polygon_coverage,
     rasterize,
@@ -167,7 +167,7 @@ def test_winding_integral_signs_and_multiplicity() -> None:
 
 @pytest.mark.xfail(
     reason="known limitation: min(|integral of W|, 1) cancels +1 and -1 lobes inside a pixel where "
-    "a self-intersecting polygon's edges cross (documented in jeanscv/render.py)",
+    "a self-intersecting polygon's edges cross (documented in jeanscv/fitting/render.py)",
     strict=True,
 )
 def test_bowtie_crossing_pixel_gets_both_lobes() -> None:

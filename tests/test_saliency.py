@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from jeanscv.silhouette.saliency import SuperpixelGraph, focus, saliency_map
+from jeanscv.subject.saliency import SuperpixelGraph, focus, saliency_map
 
 
 def _graph(labels: np.ndarray) -> SuperpixelGraph:

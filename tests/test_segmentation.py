@@ -1,4 +1,4 @@
-"""Tests for jeanscv.silhouette.photo: exact answers on tiny inputs, then the quality bar
+"""Tests for jeanscv.subject.photo: exact answers on tiny inputs, then the quality bar
 (auto reaches IoU >= 0.9 on every synthetic photo of testkit/synthetic_photos.py)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from jeanscv.errors import JeansError
-from jeanscv.silhouette.photo import Segmentation, clean_mask, segment
+from jeanscv.subject.photo import Segmentation, clean_mask, segment
 from testkit.synthetic_photos import case_names, iou, photo
 
 # ----------------------------------------------------------------------------- helpers
@@ -344,7 +344,7 @@ def test_auto_quality_over_the_whole_set(auto_results):
 def test_rim_fraction_counts_pixels_in_the_border_band():
     """On a 20x30 mask the rim is 2 px wide (10% of the short side): of a 4x4 square in
     the corner, all but the inner 2x2 block lies on it."""
-    from jeanscv.silhouette.masks import rim_fraction
+    from jeanscv.subject.masks import rim_fraction
 
     mask = np.zeros((20, 30), bool)
     mask[0:4, 0:4] = True  # corner square: rows/cols 0-1 are on the rim
@@ -357,7 +357,7 @@ def test_rim_fraction_counts_pixels_in_the_border_band():
 
 def test_side_contact_is_the_largest_share_of_one_side():
     """Top, left and right count, each as a share of its own length; the bottom not."""
-    from jeanscv.silhouette.consensus import side_contact
+    from jeanscv.subject.consensus import side_contact
 
     mask = np.zeros((10, 20), bool)
     mask[0:5, 0] = True  # half the left side
@@ -369,7 +369,7 @@ def test_side_contact_is_the_largest_share_of_one_side():
 
 
 def test_horizon_band_spans_left_to_right_off_the_bottom():
-    from jeanscv.silhouette.consensus import spans_width
+    from jeanscv.subject.consensus import spans_width
 
     band = np.zeros((20, 40), bool)
     band[5:9, :] = True  # a tree line across the frame
@@ -382,7 +382,7 @@ def test_horizon_band_spans_left_to_right_off_the_bottom():
 
 
 def test_a_pick_the_other_hypotheses_disagree_with_is_uncertain():
-    from jeanscv.silhouette.consensus import UNCERTAIN_CONSENSUS, choose
+    from jeanscv.subject.consensus import UNCERTAIN_CONSENSUS, choose
 
     left = np.zeros((20, 40), bool)
     left[5:15, 2:12] = True
@@ -399,7 +399,7 @@ def test_a_pick_the_other_hypotheses_disagree_with_is_uncertain():
 def test_horizon_bands_are_out_of_the_running_unless_all_are_bands():
     """Two hypotheses taking the same band outvote a third by consensus alone; as bands
     they are left out, and the subject wins; with no subject found, a band still wins."""
-    from jeanscv.silhouette.consensus import choose
+    from jeanscv.subject.consensus import choose
 
     band = np.zeros((20, 40), bool)
     band[5:9, :] = True

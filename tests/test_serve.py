@@ -20,7 +20,7 @@ from testkit.synthetic_photos import two_objects
 
 starlette = pytest.importorskip("starlette")
 
-from jeanscv.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
+from jeanscv.subject.clicks import Clicks, read_clicks, sidecar_path  # noqa: E402
 from jeanscv_cli.serve import engine  # noqa: E402
 
 BASE = "http://127.0.0.1:8000"
@@ -56,12 +56,15 @@ def server_temp(client) -> Path:
 def test_page_and_static_files(client):
     page = client.get("/")
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
-    assert b'src="/static/app.js"' in page.content and b'href="/static/style.css"' in page.content
-    for path, media in (("/static/app.js", "text/javascript"), ("/static/style.css", "text/css")):
+    assert b'type="module" src="/static/app.js"' in page.content and b'href="/static/style.css"' in page.content
+    # Every ES module beside app.js is served as JavaScript (the server serves a fixed list).
+    scripts = [f"/static/{path.name}" for path in sorted((Path(engine.__file__).parent / "static").glob("*.js"))]
+    assert len(scripts) > 1
+    for path, media in [*((script, "text/javascript") for script in scripts), ("/static/style.css", "text/css")]:
         response = client.get(path)
         assert response.status_code == 200 and response.headers["content-type"].startswith(media)
-    # Nothing from another host: no absolute URL in the page, its script or its style.
-    for path in ("/", "/static/app.js", "/static/style.css"):
+    # Nothing from another host: no absolute URL in the page, its scripts or its style.
+    for path in ("/", *scripts, "/static/style.css"):
         text = client.get(path).text
         assert "http://" not in text.replace("http://www.w3.org/2000/svg", "") and "https://" not in text
     csp = page.headers["content-security-policy"]
@@ -139,7 +142,7 @@ def test_good_photo_then_clicks_then_downloads(client):
     clicks = client.get(downloads["clicks"])
     assert clicks.headers["content-disposition"] == 'attachment; filename="two.clicks.json"'
     replay = Clicks.single([point], image_size=(800, 500))
-    from jeanscv.clicks import loads_clicks
+    from jeanscv.subject.clicks import loads_clicks
 
     assert loads_clicks(clicks.content) == replay
     # The automatic result has no clicks file to give.
@@ -148,7 +151,7 @@ def test_good_photo_then_clicks_then_downloads(client):
 
 
 def test_auto_and_the_click_session_cut_the_hypotheses_once(client, monkeypatch):
-    from jeanscv.silhouette import photo as segmentation
+    from jeanscv.subject import photo as segmentation
 
     cuts = []
     hypotheses = segmentation.hypotheses

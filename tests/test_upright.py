@@ -10,12 +10,12 @@ import pytest
 from conftest import paper_silhouette
 from PIL import Image
 
-from jeanscv.checks import rule_report
 from jeanscv.errors import JeansError
-from jeanscv.fitter import _upright_survivors, fit, initial_placements
-from jeanscv.garments import JEANS
-from jeanscv.posture import posture_name, tilt_degrees
-from jeanscv.presets import get_preset
+from jeanscv.fitting.checks import rule_report
+from jeanscv.fitting.fitter import _upright_survivors, fit, initial_placements
+from jeanscv.fitting.garments import JEANS
+from jeanscv.fitting.posture import posture_name, tilt_degrees
+from jeanscv.fitting.presets import get_preset
 from testkit.synthetic import random_creature, silhouette_zoo
 from testkit.upright_shapes import lying_cow, lying_dog
 
@@ -187,7 +187,7 @@ def test_json_tilt_matches_the_reported_vertices(tmp_path, run_cli):
 
 def _canvas_of(grey: np.ndarray, report: dict) -> np.ndarray:
     """The 256x256 ``S`` the CLI fitted: the drawing's alpha, framed."""
-    from jeanscv.framing import frame_mask
+    from jeanscv.subject.framing import frame_mask
 
     canvas, framing = frame_mask(1.0 - grey / 255.0)
     np.testing.assert_allclose(framing.canvas_to_image, report["canvas_to_image"], rtol=1e-5)

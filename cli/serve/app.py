@@ -46,10 +46,13 @@ _MEDIA = {
     ".svg": "image/svg+xml",
     ".gif": "image/gif",
 }
-_STATIC = {"/": ("index.html", "text/html; charset=utf-8")} | {
-    f"/static/{name}": (name, media)
-    for name, media in (("app.js", "text/javascript; charset=utf-8"), ("style.css", "text/css; charset=utf-8"))
-}
+#: The page's ES modules: app.js, the entry, imports the others.
+_SCRIPTS = ("app.js", "state.js", "server.js", "drawing.js", "captions.js", "editor.js", "folder.js")
+_STATIC = (
+    {"/": ("index.html", "text/html; charset=utf-8")}
+    | {f"/static/{name}": (name, "text/javascript; charset=utf-8") for name in _SCRIPTS}
+    | {"/static/style.css": ("style.css", "text/css; charset=utf-8")}
+)
 _THUMB_SIDE = 480
 
 

@@ -33,19 +33,19 @@ import numpy as np
 from PIL import Image
 
 from jeanscv import api
-from jeanscv.clicks import Clicks, read_clicks, sidecar_path, write_clicks
 from jeanscv.errors import JeansError
-from jeanscv.framing import Framing
 from jeanscv.options import POSTURES, STYLES, JeansOptions
-from jeanscv.runner import encode_picture, report_text
-from jeanscv.silhouettes import box_of
+from jeanscv.run.runner import encode_picture, report_text
+from jeanscv.subject.clicks import Clicks, read_clicks, sidecar_path, write_clicks
+from jeanscv.subject.framing import Framing
+from jeanscv.subject.silhouettes import box_of
 
 from .. import worker
 from ..discover import Job
 from ..extras import optimisation_gif, svg_document
 
 if TYPE_CHECKING:
-    from jeanscv.silhouette.photo import SharedHypotheses
+    from jeanscv.subject.photo import SharedHypotheses
 
 #: Long side of the interactive preview: clicks on 12-MP photos stay quick.
 PREVIEW_SIDE = 1280
@@ -128,8 +128,8 @@ def default_backend() -> str:
 def warm_up() -> None:
     """Compile or load the fit kernels now, and have segmentation's colour tables built,
     so the first photo does not wait for them."""
-    from jeanscv import _fast
-    from jeanscv.silhouette.scene import prepare_lab_tables
+    from jeanscv.fitting import _fast
+    from jeanscv.subject.scene import prepare_lab_tables
 
     prepare_lab_tables()
     if default_backend() == "fast":
@@ -184,7 +184,7 @@ class Photo:
         """The click session (made on first use: a few tenths of a second with the
         automatic segmentation's hypotheses). Hold ``lock``."""
         if self._session is None:
-            from jeanscv.silhouette.interactive import ClickSession
+            from jeanscv.subject.interactive import ClickSession
 
             self._session = ClickSession(self.pixels, shared=self.shared)
             self.shared = None  # the session holds what it needs
@@ -219,7 +219,7 @@ def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """
-    from jeanscv.silhouette.photo import SharedHypotheses
+    from jeanscv.subject.photo import SharedHypotheses
 
     shared = SharedHypotheses()  # auto's hypotheses, cut once for the click session too
     silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels, shared=shared)
@@ -246,7 +246,7 @@ def _compact(silhouette):
 def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
     """One full-size silhouette per clicked object, in order, as
     :func:`jeanscv.extraction.extract_silhouettes` makes them, from the photo's own session."""
-    from jeanscv.extraction import clicked_silhouettes
+    from jeanscv.subject.extraction import clicked_silhouettes
 
     clicks.check(photo.size)
     with photo.lock:
@@ -461,7 +461,7 @@ def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
     """The page's clicks (``[{"positive": [[x, y]...], "negative": [...]}...]``), or None for none."""
-    from jeanscv.clicks import parse_clicks
+    from jeanscv.subject.clicks import parse_clicks
 
     if data is None or data == []:
         return None

@@ -14,7 +14,7 @@ CAPE_VERTICES = [[80.0, 180.0], [92.0, 80.0], [112.0, 70.0], [134.0, 70.0], [154
 
 def cape():
     """The ``cape`` garment (a zero-argument factory, as the entry point allows)."""
-    from jeanscv.garments import Garment
+    from jeanscv.garments import Garment  # the path plugins have always used (jeanscv.fitting.garments)
 
     return Garment(
         name="cape",

@@ -1,0 +1,71 @@
+// Drawing on the photo: the objects' outlines and the clicks (an SVG over the picture),
+// and the fit played back.
+import { $, SVG_NS, state } from "./state.js";
+
+function drawOverlay(animatedJeans = null) {
+  const svg = $("overlay");
+  svg.replaceChildren();
+  const answer = state.result;
+  if (!answer) return;
+  const unit = Math.max(answer.width, answer.height) / 100;
+  answer.objects.forEach((object, index) => {
+    for (const ring of object.outline) {
+      const d = "M" + ring.map((p) => `${p[0]},${p[1]}`).join("L") + "Z";
+      for (const cls of ["outline-shadow", index === state.current || !answer.clicks ? "outline" : "outline other"]) {
+        const path = document.createElementNS(SVG_NS, "path");
+        path.setAttribute("d", d);
+        path.setAttribute("class", cls);
+        svg.appendChild(path);
+      }
+    }
+  });
+  if (animatedJeans) {
+    for (const polygon of animatedJeans) {
+      const shape = document.createElementNS(SVG_NS, "polygon");
+      shape.setAttribute("points", polygon.map((p) => `${p[0]},${p[1]}`).join(" "));
+      shape.setAttribute("class", "jeans-anim");
+      svg.appendChild(shape);
+    }
+  }
+  state.objects.forEach((object, index) => {
+    for (const [sign, points] of [["pos", object.positive], ["neg", object.negative]]) {
+      for (const [x, y] of points) {
+        const dot = document.createElementNS(SVG_NS, "circle");
+        dot.setAttribute("cx", x);
+        dot.setAttribute("cy", y);
+        dot.setAttribute("r", unit * 0.9);
+        dot.setAttribute("class", `click ${sign}${index === state.current ? "" : " faded"}`);
+        svg.appendChild(dot);
+      }
+    }
+  });
+}
+
+// ------------------------------------------------------------------ the fit, animated
+function watchFit() {
+  const answer = state.result;
+  if (!answer || state.animating) return;
+  state.animating = true;
+  const image = $("result");
+  const finished = image.src;
+  image.src = `/api/photos/${state.photo}/original`;
+  const frames = Math.max(...answer.objects.map((o) => o.trajectory.length));
+  const began = performance.now();
+  const duration = 2500;
+  const step = (now) => {
+    const index = Math.min(frames - 1, Math.floor(((now - began) / duration) * frames));
+    drawOverlay(answer.objects.map((o) => o.trajectory[Math.min(index, o.trajectory.length - 1)]));
+    if (index < frames - 1) {
+      requestAnimationFrame(step);
+    } else {
+      setTimeout(() => {
+        image.src = finished;
+        state.animating = false;
+        drawOverlay();
+      }, 700);
+    }
+  };
+  requestAnimationFrame(step);
+}
+
+export { drawOverlay, watchFit };

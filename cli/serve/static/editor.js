@@ -1,0 +1,195 @@
+// One photo: upload, the server's result, and the clicks that fix the subject.
+import { updateMemeLink } from "./captions.js";
+import { drawOverlay } from "./drawing.js";
+import { post } from "./server.js";
+import { $, setStatus, showError, state } from "./state.js";
+
+function renderOptions() {
+  return { style: $("style").value, garment: $("garment").value, posture: $("posture").value };
+}
+
+// ------------------------------------------------------------------ upload
+async function upload(file) {
+  if (!file) return;
+  showError("");
+  if (state.maxUpload && file.size > state.maxUpload) {
+    showError(`${file.name}: the file is larger than the server's upload limit (${Math.round(state.maxUpload / 1048576)} MB)`);
+    return;
+  }
+  setStatus(`Putting jeans on ${file.name}…`, true);
+  const form = new FormData();
+  form.append("file", file, file.name);
+  try {
+    const answer = await post("/api/photos", form);
+    start(answer, null);
+  } catch (error) {
+    setStatus("");
+    showError(error.message);
+  }
+}
+
+function start(answer, item) {
+  state.photo = answer.photo;
+  state.item = item;
+  state.kind = answer.kind;
+  state.name = answer.name;
+  state.width = answer.width;
+  state.height = answer.height;
+  state.objects = [];
+  state.current = 0;
+  state.history = [];
+  $("drop").hidden = true;
+  $("view").hidden = false;
+  $("panel").hidden = false;
+  $("save").hidden = item === null;
+  $("original").src = `/api/photos/${answer.photo}/original`;
+  if (answer.clicks && answer.saved_clicks) {
+    state.objects = answer.saved_clicks.map((o) => ({ positive: o.positive, negative: o.negative }));
+  }
+  show(answer);
+  updateControls();
+}
+
+// ------------------------------------------------------------------ results
+function show(answer) {
+  state.result = answer;
+  const image = $("result");
+  image.src = answer.preview;
+  const svg = $("overlay");
+  svg.setAttribute("viewBox", `0 0 ${answer.width} ${answer.height}`);
+  svg.setAttribute("preserveAspectRatio", "none");
+  drawOverlay();
+  for (const kind of ["image", "json", "svg", "gif", "clicks"]) {
+    const link = $(`dl-${kind}`);
+    link.href = answer.downloads[kind];
+    link.classList.toggle("disabled", kind === "clicks" && !answer.clicks);
+  }
+  updateMemeLink();
+  const summary = answer.summary;
+  const count = summary.objects === 1 ? "1 object" : `${summary.objects} objects`;
+  let text = `${state.name}: ${count}, ${answer.clicks ? "from your clicks" : `found by ${summary.method}`}.`;
+  if (state.kind === "photo") {
+    text += answer.clicks ? "" : " Wrong thing? Click the one that should wear them.";
+    if (summary.uncertain && !answer.clicks) text = `${state.name}: not sure what the subject is. Click it.`;
+  }
+  setStatus(text);
+}
+
+async function rerender() {
+  if (!state.photo) return;
+  if (state.inFlight) {
+    state.again = true; // send the newest clicks once this answer is in
+    return;
+  }
+  state.inFlight = true;
+  state.again = false;
+  const sequence = ++state.sequence;
+  setStatus("Fitting…", true);
+  try {
+    const objects = state.objects.filter((o) => o.positive.length > 0);
+    const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
+    if (sequence > state.shown) {
+      state.shown = sequence;
+      showError("");
+      if (!state.again) show(answer);
+    }
+  } catch (error) {
+    setStatus("");
+    showError(error.message);
+  } finally {
+    state.inFlight = false;
+    if (state.again) rerender();
+  }
+}
+
+// ------------------------------------------------------------------ clicks
+function photoPoint(event) {
+  const rect = $("result").getBoundingClientRect();
+  const x = ((event.clientX - rect.left) / rect.width) * state.width;
+  const y = ((event.clientY - rect.top) / rect.height) * state.height;
+  const clamp = (v, top) => Math.min(Math.max(v, 0), top - 0.01);
+  return [Math.round(clamp(x, state.width) * 10) / 10, Math.round(clamp(y, state.height) * 10) / 10];
+}
+
+function addClick(event) {
+  if (state.kind !== "photo" || !state.result) return;
+  event.preventDefault();
+  const negative = state.negative || event.shiftKey || event.altKey || event.ctrlKey || event.metaKey || event.button === 2;
+  if (!state.objects[state.current]) state.objects[state.current] = { positive: [], negative: [] };
+  const object = state.objects[state.current];
+  if (negative && object.positive.length === 0) {
+    showError("Add a positive click on the object first, then remove what is not part of it.");
+    return;
+  }
+  (negative ? object.negative : object.positive).push(photoPoint(event));
+  state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
+  drawOverlay();
+  updateControls();
+  rerender();
+}
+
+function undo() {
+  const last = state.history.pop();
+  if (!last) return;
+  state.objects[last.object][last.sign].pop();
+  if (state.objects[last.object].positive.length === 0 && state.objects[last.object].negative.length === 0
+      && last.object === state.objects.length - 1 && last.object > 0) {
+    state.objects.pop();
+    state.current = Math.min(state.current, state.objects.length - 1);
+  }
+  drawOverlay();
+  updateControls();
+  rerender();
+}
+
+function reset() {
+  state.objects = [];
+  state.current = 0;
+  state.history = [];
+  updateControls();
+  rerender();
+}
+
+function newObject() {
+  const last = state.objects[state.objects.length - 1];
+  if (last && last.positive.length === 0) {
+    state.current = state.objects.length - 1;
+  } else {
+    state.objects.push({ positive: [], negative: [] });
+    state.current = state.objects.length - 1;
+  }
+  drawOverlay();
+  updateControls();
+  setStatus(`Object ${state.current + 1}: click it.`);
+}
+
+function setMode(negative) {
+  state.negative = negative;
+  $("mode-add").setAttribute("aria-pressed", String(!negative));
+  $("mode-remove").setAttribute("aria-pressed", String(negative));
+}
+
+function updateControls() {
+  const photo = state.kind === "photo";
+  for (const id of ["mode-add", "mode-remove", "new-object", "undo", "reset"]) $(id).disabled = !photo;
+  $("undo").disabled = !photo || state.history.length === 0;
+  $("reset").disabled = !photo || state.objects.length === 0;
+  $("new-object").disabled = !photo || !state.objects.some((o) => o.positive.length > 0);
+  $("save").disabled = !state.objects.some((o) => o.positive.length > 0);
+  const list = $("objects");
+  list.replaceChildren();
+  state.objects.forEach((object, index) => {
+    const button = document.createElement("button");
+    button.type = "button";
+    button.textContent = `Object ${index + 1} (${object.positive.length}+ ${object.negative.length}\u2212)`;
+    button.setAttribute("aria-pressed", String(index === state.current));
+    button.addEventListener("click", () => {
+      state.current = index;
+      updateControls();
+      drawOverlay();
+    });
+    list.appendChild(button);
+  });
+}
+
+export { addClick, newObject, rerender, reset, setMode, start, undo, upload };

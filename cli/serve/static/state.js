@@ -1,0 +1,36 @@
+// The page's state, and the status and error lines every part of the page writes to.
+
+const $ = (id) => document.getElementById(id);
+
+const SVG_NS = "http://www.w3.org/2000/svg";
+
+const state = {
+  photo: null, // id
+  item: null, // folder item index, when opened from the folder
+  kind: "photo",
+  name: "",
+  width: 0,
+  height: 0,
+  objects: [], // [{positive: [[x, y]], negative: [[x, y]]}]
+  current: 0,
+  history: [], // [{object, sign}] for undo
+  result: null, // last answer of the server
+  negative: false, // the touch toggle
+  sequence: 0, // renders sent
+  shown: 0, // the newest render shown
+  inFlight: false,
+  again: false,
+  animating: false,
+};
+
+function setStatus(text, busy = false) {
+  $("status").textContent = text;
+  $("status").classList.toggle("busy", busy);
+}
+
+function showError(text) {
+  $("error").textContent = text;
+  $("error").hidden = !text;
+}
+
+export { $, SVG_NS, setStatus, showError, state };

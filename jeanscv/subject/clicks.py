@@ -1,0 +1,257 @@
+"""Clicks that say what the subject is: the data model and the versioned clicks file.
+
+A person fixes the subject of a photo with clicks: positive clicks on the thing that
+should wear the jeans, negative clicks on what should not. The clicks of one object
+are constraints on one mask (it holds every positive click and none of the negative
+ones); several objects each have their own clicks.
+
+Coordinates are ``(x, y)`` pixels of the photo *as displayed* (after its EXIF
+orientation, at its full size even when a RAW file is decoded at half size), package
+convention: pixel ``(c, r)`` covers ``[c, c+1) x [r, r+1)``, so a click at ``(10.5, 20.5)``
+is the centre of pixel (10, 20).
+
+The clicks file (``NAME.clicks.json``, written by the web page and by
+:func:`write_clicks`, replayed by ``jeanscv --clicks FILE``)::
+
+    {
+      "format": "jeanscv-clicks",
+      "version": 1,
+      "image": {"width": 4032, "height": 3024},
+      "objects": [
+        {"positive": [[1210.5, 1877.0]], "negative": [[2410.0, 900.5]]},
+        {"positive": [[3000.0, 2000.0]], "negative": []}
+      ]
+    }
+
+``image`` records the size the clicks were made on; a file whose size does not match
+the photo it is replayed on is refused (the clicks would land on the wrong things).
+``image`` may be omitted by hand-written files: then only the bounds are checked.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import reprlib
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import JeansError
+
+FORMAT = "jeanscv-clicks"
+VERSION = 1
+#: The sidecar a folder's photo keeps its clicks in: ``cat.jpg`` -> ``cat.clicks.json``.
+SIDECAR_SUFFIX = ".clicks.json"
+#: Bigger clicks files are refused before parsing (a person makes a few dozen clicks).
+MAX_FILE_BYTES = 1 << 20
+#: Most objects, and most clicks of one object, a clicks file may hold.
+MAX_OBJECTS = 64
+MAX_CLICKS = 256
+
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class ObjectClicks:
+    """The clicks of one object: ``positive`` on it, ``negative`` off it (image pixels)."""
+
+    positive: tuple[Point, ...]
+    negative: tuple[Point, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "positive", tuple(_point(p) for p in self.positive))
+        object.__setattr__(self, "negative", tuple(_point(p) for p in self.negative))
+        if not self.positive:
+            raise JeansError("an object needs at least one positive click")
+        if len(self.positive) + len(self.negative) > MAX_CLICKS:
+            raise JeansError(f"an object has more than {MAX_CLICKS} clicks")
+        taken = {_pixel(p) for p in self.positive}
+        for point in self.negative:
+            if _pixel(point) in taken:
+                raise JeansError(f"negative click ({point[0]:g}, {point[1]:g}) is on top of a positive one")
+
+    def to_json(self) -> dict:
+        return {"positive": [list(p) for p in self.positive], "negative": [list(p) for p in self.negative]}
+
+
+@dataclass(frozen=True)
+class Clicks:
+    """The clicks of every object of one photo, and the photo's size ``(width, height)``
+    they were made on (None when unknown)."""
+
+    objects: tuple[ObjectClicks, ...]
+    image_size: tuple[int, int] | None = None
+    extra: dict = field(default_factory=dict, compare=False)  # unknown keys, kept on rewrite
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "objects", tuple(self.objects))
+        if len(self.objects) > MAX_OBJECTS:
+            raise JeansError(f"more than {MAX_OBJECTS} objects")
+
+    @classmethod
+    def single(cls, positive: Iterable[Point], negative: Iterable[Point] = (), image_size=None) -> Clicks:
+        """One object's clicks."""
+        return cls((ObjectClicks(tuple(positive), tuple(negative)),), image_size)
+
+    def check(self, size: tuple[int, int]) -> None:
+        """JeansError unless the clicks fit a photo of ``size`` = (width, height)."""
+        width, height = size
+        if self.image_size is not None and tuple(self.image_size) != (width, height):
+            w, h = self.image_size
+            raise JeansError(f"the clicks were made on a {w}x{h} image, this one is {width}x{height}")
+        for index, obj in enumerate(self.objects):
+            for x, y in obj.positive + obj.negative:
+                if not (0 <= x < width and 0 <= y < height):
+                    which = f"object {index + 1}: " if len(self.objects) > 1 else ""
+                    raise JeansError(f"{which}click ({x:g}, {y:g}) is outside the {width}x{height} image")
+
+    def scaled(self, size: tuple[int, int]) -> Clicks:
+        """The clicks in pixels of a copy of the image at ``size`` = (width, height)
+        (a RAW file decoded at half size); needs ``image_size`` or raises."""
+        if self.image_size is None:
+            raise JeansError("the clicks' image size is unknown")
+        sx, sy = size[0] / self.image_size[0], size[1] / self.image_size[1]
+
+        def scale(points):
+            return tuple((x * sx, y * sy) for x, y in points)
+
+        objects = tuple(ObjectClicks(scale(o.positive), scale(o.negative)) for o in self.objects)
+        return Clicks(objects, tuple(size), self.extra)
+
+    def to_json(self) -> dict:
+        """The clicks file's JSON object."""
+        data: dict = {"format": FORMAT, "version": VERSION}
+        if self.image_size is not None:
+            data["image"] = {"width": int(self.image_size[0]), "height": int(self.image_size[1])}
+        data["objects"] = [obj.to_json() for obj in self.objects]
+        return {**self.extra, **data}
+
+    def dumps(self) -> str:
+        return json.dumps(self.to_json(), indent=2) + "\n"
+
+
+def _point(value) -> Point:
+    """A click as two finite floats of a plausible size, else JeansError."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise JeansError(f"a click must be two numbers [x, y], got {_shown(value)}")
+    try:
+        x, y = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise JeansError(f"a click must be two numbers [x, y], got {_shown(value)}") from None
+    except OverflowError:  # an integer of hundreds of digits
+        raise JeansError(f"a click's coordinates are too large to be pixels, got {_shown(value)}") from None
+    if isinstance(value[0], bool) or isinstance(value[1], bool) or not (math.isfinite(x) and math.isfinite(y)):
+        raise JeansError(f"a click must be two finite numbers [x, y], got {_shown(value)}")
+    return x, y
+
+
+def _shown(value) -> str:
+    """A short repr of what a clicks file held: never raises (Python refuses the repr
+    of an integer of over 4300 digits) and never grows with the input."""
+    try:
+        text = reprlib.repr(value)
+    except (ValueError, RecursionError):
+        text = f"a {type(value).__name__}"
+    return text[:80]
+
+
+def _pixel(point: Point) -> tuple[int, int]:
+    return math.floor(point[0]), math.floor(point[1])
+
+
+def parse_clicks(data) -> Clicks:
+    """A :class:`Clicks` from the clicks file's JSON value, else JeansError saying why."""
+    if not isinstance(data, dict):
+        raise JeansError("not a clicks file (expected a JSON object)")
+    if data.get("format") != FORMAT:
+        raise JeansError(f'not a clicks file (no "format": "{FORMAT}")')
+    version = data.get("version")
+    if version != VERSION:
+        raise JeansError(f"clicks file version {version!r} is not supported (this jeanscv reads version {VERSION})")
+    image_size = None
+    if "image" in data:
+        image = data["image"]
+        try:
+            width, height = image["width"], image["height"]
+        except (TypeError, KeyError):
+            raise JeansError('"image" must be {"width": W, "height": H}') from None
+        if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (width, height)):
+            raise JeansError('"image" width and height must be positive integers')
+        image_size = (width, height)
+    objects = data.get("objects")
+    if not isinstance(objects, list) or not objects:
+        raise JeansError('"objects" must be a non-empty list')
+    if len(objects) > MAX_OBJECTS:
+        raise JeansError(f"more than {MAX_OBJECTS} objects")
+    parsed = []
+    for index, obj in enumerate(objects):
+        if not isinstance(obj, dict):
+            raise JeansError(f"object {index + 1} must be a JSON object")
+        positive, negative = obj.get("positive", []), obj.get("negative", [])
+        if not isinstance(positive, list) or not isinstance(negative, list):
+            raise JeansError(f'object {index + 1}: "positive" and "negative" must be lists of [x, y]')
+        try:
+            parsed.append(ObjectClicks(tuple(positive), tuple(negative)))
+        except JeansError as exc:
+            raise JeansError(f"object {index + 1}: {exc}") from None
+    extra = {k: v for k, v in data.items() if k not in ("format", "version", "image", "objects")}
+    return Clicks(tuple(parsed), image_size, extra)
+
+
+def loads_clicks(text: str | bytes) -> Clicks:
+    """Parse the clicks file's text."""
+    if len(text) > MAX_FILE_BYTES:
+        raise JeansError(f"clicks file is larger than {MAX_FILE_BYTES // 1024} KiB")
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:  # JSONDecodeError and bad UTF-8
+        raise JeansError(f"clicks file is not valid JSON ({str(exc).splitlines()[0][:120]})") from None
+    return parse_clicks(data)
+
+
+def read_clicks(path: str | os.PathLike) -> Clicks:
+    """Read a clicks file; JeansError naming the reason when it cannot be used."""
+    from ..io.files import open_regular
+
+    path = Path(path)
+    try:
+        with open_regular(path) as file:  # a FIFO would block the read forever
+            data = file.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
+            raise JeansError(f"clicks file is larger than {MAX_FILE_BYTES // 1024} KiB")
+    except FileNotFoundError:
+        raise JeansError("clicks file not found") from None
+    except IsADirectoryError:
+        raise JeansError("clicks file is a folder") from None
+    except OSError as exc:
+        raise JeansError(f"cannot read the clicks file ({exc.strerror or exc})") from None
+    return loads_clicks(data)
+
+
+def write_clicks(path: str | os.PathLike, clicks: Clicks) -> None:
+    """Write a clicks file atomically (a crash leaves the old file or the new one)."""
+    from ..io.write import write_text
+
+    write_text(Path(path), clicks.dumps())
+
+
+def sidecar_path(photo: str | os.PathLike) -> Path:
+    """Where a folder's photo keeps its clicks: ``dir/cat.jpg`` -> ``dir/cat.clicks.json``."""
+    photo = Path(photo)
+    return photo.with_name(photo.stem + SIDECAR_SUFFIX)
+
+
+__all__ = [
+    "FORMAT",
+    "SIDECAR_SUFFIX",
+    "VERSION",
+    "Clicks",
+    "ObjectClicks",
+    "loads_clicks",
+    "parse_clicks",
+    "read_clicks",
+    "sidecar_path",
+    "write_clicks",
+]

@@ -1,0 +1,216 @@
+"""Silhouettes of the objects in a photo: segmented (:mod:`jeanscv.subject`, or a
+plugin's method), split into separate objects, picked by clicks, each framed on the canvas."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import JeansError
+from ..geometry import mask_box
+from ..options import OBJECTS
+from .framing import frame_mask
+from .silhouettes import Silhouette
+from .silhouettes import box_of as _box_of
+
+if TYPE_CHECKING:  # segmentation imports OpenCV, on first use
+    from .photo import SharedHypotheses
+
+
+def extract_silhouette(
+    image: np.ndarray,
+    method: str = "auto",
+    *,
+    threshold: float | None = None,
+    rect: tuple[int, int, int, int] | None = None,
+    mask: np.ndarray | None = None,
+    shared: SharedHypotheses | None = None,
+) -> Silhouette:
+    """Segment the main object of a photo ``(H, W, 3|4)`` uint8 and frame it.
+
+    ``method``: ``auto``, ``alpha``, ``threshold``, ``grabcut`` (see the README);
+    ``mask``: a user-supplied ``(H, W)`` mask, used instead of segmentation; ``shared``:
+    a :class:`~jeanscv.subject.photo.SharedHypotheses` that auto's hypotheses are
+    cut into, or taken from (a click session of the same photo shares them).
+    """
+    from .photo import segment
+    from .plugins import is_plugin_silhouette_method, segment_with
+
+    if mask is None and is_plugin_silhouette_method(method):
+        # A plugin extractor takes the image alone: threshold and rect are built-in options.
+        result = segment_with(method, image)
+    else:
+        method = "mask" if mask is not None else method
+        result = segment(image, method, threshold=threshold, rect=rect, mask=mask, shared=shared)
+    canvas, framing = frame_mask(result.mask)
+    return Silhouette(
+        result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details)
+    )
+
+
+def object_clicks(points, background_points, clicks) -> list:
+    """Every object's clicks (:class:`jeanscv.subject.clicks.ObjectClicks`): ``points`` and
+    ``background_points`` are one object's, ``clicks`` a :class:`jeanscv.subject.clicks.Clicks`
+    or a list of per-object ``{"positive": [...], "negative": [...]}``."""
+    from .clicks import Clicks, ObjectClicks, parse_clicks
+
+    objects = []
+    if points or background_points:
+        if not points:
+            raise JeansError("a background click needs a positive click on the object too")
+        objects.append(ObjectClicks(tuple(points), tuple(background_points or ())))
+    if clicks is not None:
+        if isinstance(clicks, Clicks):
+            objects += clicks.objects
+        else:
+            objects += parse_clicks({"format": "jeanscv-clicks", "version": 1, "objects": list(clicks)}).objects
+    return objects
+
+
+def extract_silhouettes(
+    image: np.ndarray,
+    method: str = "auto",
+    *,
+    objects: str = "one",
+    points: list[tuple[float, float]] | None = None,
+    background_points: list[tuple[float, float]] | None = None,
+    clicks=None,
+    threshold: float | None = None,
+    rect: tuple[int, int, int, int] | None = None,
+    mask: np.ndarray | None = None,
+    shared: SharedHypotheses | None = None,
+) -> list[Silhouette]:
+    """The objects of a photo ``(H, W, 3|4)`` uint8, each segmented and framed on its own.
+
+    ``objects="one"``: the main subject (as :func:`extract_silhouette`); ``"all"``: every
+    separate object of the subject mask, largest first (specks under 10% of the largest
+    are dropped).
+
+    Clicks fix the subject (``(x, y)`` image pixels): ``points`` are the positive clicks
+    of one object and ``background_points`` its negative ones; ``clicks`` gives several
+    objects, each with its own clicks (a :class:`jeanscv.subject.clicks.Clicks`, or a list of
+    ``{"positive": [...], "negative": [...]}``), after the object of ``points``. Each
+    clicked object is segmented by a :class:`~jeanscv.subject.interactive.ClickSession`
+    (method ``"clicks"``): its mask holds every positive click and none of the negative
+    ones. The clicked objects come first, in order; with ``"all"`` the automatic objects
+    that they do not cover follow. With a user ``mask``, ``points`` pick the mask's pieces
+    instead. Every silhouette's ``details`` holds its ``box`` (x, y, w, h); a clicked
+    one also its ``clicks`` and ``point`` (its first positive click). ``shared``: a
+    :class:`~jeanscv.subject.photo.SharedHypotheses` for auto's hypotheses of this
+    photo (cut once for the automatic subject and the click session; the results are
+    the same without it).
+    """
+    if objects not in OBJECTS:
+        raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
+    pixels = np.asarray(image)
+    if mask is not None:
+        if background_points or clicks is not None:
+            raise JeansError("clicks refine the automatic segmentation: they cannot be combined with a mask")
+        return _mask_objects(pixels, method, objects, points, threshold, rect, mask)
+    wanted = object_clicks(points, background_points, clicks)
+    if not wanted:
+        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
+        found = split_objects(main.mask) if objects == "all" else []
+        if len(found) <= 1:
+            main.details["box"] = list(_box_of(main))
+            return [main]
+        return [_object_silhouette(obj, main) for obj in found]
+    from .clicks import Clicks
+    from .interactive import ClickSession
+    from .photo import SharedHypotheses
+
+    height, width = pixels.shape[:2]
+    Clicks(tuple(wanted)).check((width, height))
+    shared = shared or SharedHypotheses()  # the session's hypotheses are auto's too
+    chosen = clicked_silhouettes(ClickSession(pixels, shared=shared), wanted)
+    if objects == "all":
+        try:
+            main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
+        except JeansError:
+            return chosen
+        covered = np.zeros(pixels.shape[:2], bool)
+        for silhouette in chosen:
+            covered |= silhouette.mask
+        for obj in split_objects(main.mask):
+            # An automatic object mostly under a clicked one is that object again.
+            if np.count_nonzero(obj.mask & ~covered) > 0.5 * obj.area:
+                chosen.append(_object_silhouette(obj, main))
+    return chosen
+
+
+def clicked_silhouettes(session, objects) -> list[Silhouette]:
+    """One framed silhouette per object's clicks (:class:`jeanscv.subject.clicks.ObjectClicks`),
+    in order, segmented by ``session`` (a
+    :class:`~jeanscv.subject.interactive.ClickSession` of the photo, which a caller
+    that clicks often keeps); ``details`` holds the object's ``clicks``, its first
+    positive click as ``point`` and its ``box``."""
+    found = []
+    for obj in objects:
+        silhouette = _framed(session.segment(obj.positive, obj.negative), obj.positive[0])
+        silhouette.details["clicks"] = obj.to_json()
+        found.append(silhouette)
+    return found
+
+
+def split_objects(mask: np.ndarray):
+    """The separate objects of a subject mask (:func:`jeanscv.subject.objects.split_objects`)."""
+    from .objects import split_objects as _split
+
+    return _split(mask)
+
+
+def _mask_objects(pixels, method, objects, points, threshold, rect, mask) -> list[Silhouette]:
+    """A user mask's objects: with ``points``, the pieces under them first."""
+    from .objects import check_point, object_at
+    from .photo import binarise, segment
+
+    clicks = [check_point(point, pixels.shape[:2]) for point in points or ()]
+    main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, mask=mask)
+    subject = binarise(mask)
+    # A given mask is split before its cleaning, which keeps only pieces of at least a
+    # quarter of the largest one's size: the user said what the objects are.
+    found = split_objects(subject) if subject.any() and (clicks or objects == "all") else []
+    if not clicks and len(found) <= 1:
+        main.details["box"] = list(_box_of(main))
+        return [main]
+
+    def pick(obj, point=None) -> Silhouette | None:
+        try:
+            return _framed(segment(pixels, "mask", mask=obj.mask), point)
+        except JeansError:  # a speck of the user's mask, too small to segment
+            if point is None:
+                return None
+            raise
+
+    chosen: list[Silhouette | None] = []
+    picked: set[int] = set()
+    for point in clicks:
+        index = object_at(found, point)
+        if index is None:
+            raise JeansError(f"no object of the mask at point ({point[0]:g}, {point[1]:g})")
+        if index not in picked:
+            picked.add(index)
+            chosen.append(pick(found[index], point))
+    if objects == "all":
+        chosen += [pick(obj) for i, obj in enumerate(found) if i not in picked]
+    return [silhouette for silhouette in chosen if silhouette is not None]
+
+
+def _framed(segmentation, point: tuple[float, float] | None = None) -> Silhouette:
+    """A :class:`Silhouette` of one object's :class:`Segmentation` (its bool mask kept)."""
+
+    canvas, framing = frame_mask(segmentation.mask)
+    details = {**segmentation.details, "box": list(mask_box(segmentation.mask))}
+    if point is not None:
+        details["point"] = list(point)
+    return Silhouette(segmentation.mask, canvas, framing, segmentation.method, segmentation.contour, details)
+
+
+def _object_silhouette(obj, main: Silhouette, point: tuple[float, float] | None = None) -> Silhouette:
+    """A :class:`Silhouette` of one object split from the main subject's mask."""
+    canvas, framing = frame_mask(obj.mask)
+    details = {"box": list(obj.box), "subject_method": main.method}
+    if point is not None:
+        details["point"] = list(point)
+    return Silhouette(obj.mask, canvas, framing, main.method, obj.contour, details)
