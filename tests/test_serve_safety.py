@@ -220,7 +220,8 @@ def big_photo() -> bytes:
     return png_bytes(np.asarray(image))
 
 
-def post_upload(port: int, data: bytes, answers: list) -> None:
+def post_upload(port: int, data: bytes, answers: list, sent: threading.Event | None = None) -> None:
+    """Upload ``data``; ``sent`` is set once the whole request is out; the answer is appended."""
     boundary = "jeanscvtest"
     body = (
         f'--{boundary}\r\nContent-Disposition: form-data; name="file"; filename="big.png"\r\n\r\n'.encode()
@@ -230,6 +231,8 @@ def post_upload(port: int, data: bytes, answers: list) -> None:
     try:
         connection = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
         connection.request("POST", "/api/photos", body, {"Content-Type": f"multipart/form-data; boundary={boundary}"})
+        if sent is not None:
+            sent.set()
         response = connection.getresponse()
         answers.append((response.status, response.read()))
     except OSError as exc:
@@ -241,9 +244,11 @@ def test_stops_within_2_s_while_a_photo_is_worked_on(tmp_path, sig):
     server, port = start_server(tmp_path)
     data = big_photo()
     answers: list = []
-    client = threading.Thread(target=post_upload, args=(port, data, answers))
+    sent = threading.Event()
+    client = threading.Thread(target=post_upload, args=(port, data, answers, sent))
     client.start()
-    time.sleep(1.5)  # the upload is in and its segmentation is running
+    assert sent.wait(30)
+    time.sleep(0.6)  # the upload is in and being decoded or segmented (2-3 s in all for 12 MP here)
     code, seconds, err = stop(server, sig)
     client.join(timeout=30)
     assert code == (0 if sig == signal.SIGINT else 143), err

@@ -8,7 +8,7 @@ Clicks become silhouettes in :func:`silhouettes_from_clicks`: the photo keeps on
 ``ClickSession`` (the library's ``extract_silhouettes(clicks=...)`` makes a new one per
 call, half a second on a 12-MP photo), made with the hypotheses that the automatic
 segmentation cut when the photo was opened (cut once:
-:class:`~jeanscv.silhouette.photo.SharedHypotheses`), and each object is segmented and
+:class:`~jeanscv.subject.photo.SharedHypotheses`), and each object is segmented and
 framed as the library does it, so the page's result is the command line's. A folder's outputs are made
 by the command line's own worker, which reads the clicks saved beside the photo.
 
@@ -245,7 +245,7 @@ def _compact(silhouette):
 
 def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
     """One full-size silhouette per clicked object, in order, as
-    :func:`jeanscv.extraction.extract_silhouettes` makes them, from the photo's own session."""
+    :func:`jeanscv.subject.extraction.extract_silhouettes` makes them, from the photo's own session."""
     from jeanscv.subject.extraction import clicked_silhouettes
 
     clicks.check(photo.size)
