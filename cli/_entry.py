@@ -7,29 +7,9 @@ interrupt does then.
 
 from __future__ import annotations
 
-import os
-import signal
 import sys
 
-
-def exit_at_once_on_interrupt(interrupted: int) -> None:
-    """Until the command takes over its signals, Ctrl-C ends the process at once with
-    status ``interrupted`` and SIGTERM with 143, saying nothing.
-
-    Nothing has been written that early. Without this, Ctrl-C while the command starts
-    up printed click's "Aborted!" and exited 1, or a traceback of the import it stopped.
-    """
-
-    def end(signum, frame) -> None:
-        os._exit(interrupted if signum == signal.SIGINT else 128 + signal.SIGTERM)
-
-    try:
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            signal.signal(signal.SIGINT, end)
-        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, end)
-    except ValueError:  # not the main thread: leave signals alone
-        pass
+from .interrupts import exit_at_once_on_interrupt
 
 
 def main() -> None:

@@ -274,11 +274,12 @@ def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
     PATH may be files, folders (with -r, their subfolders too) and glob patterns.
     How would this thing wear jeans? (Pagurek's jalgorithm, SIGBOVIK 2023.)
     """
+    from .interrupts import usual_interrupts
     from .worker import fewer_collections, skip_exit_collection
 
     skip_exit_collection()
     try:
-        _usual_interrupts()
+        usual_interrupts()
         with fewer_collections():
             code = _main(ctx, paths, **kw)
     except KeyboardInterrupt:
@@ -570,7 +571,7 @@ def one_blas_thread() -> None:
 
 def main() -> None:
     """Console-script entry point; ``jeanscv serve ...`` runs the web page's command."""
-    from ._entry import exit_at_once_on_interrupt
+    from .interrupts import exit_at_once_on_interrupt
 
     serving = len(sys.argv) > 1 and sys.argv[1] == "serve"
     exit_at_once_on_interrupt(0 if serving else 130)  # already done where _entry started the command
@@ -581,18 +582,6 @@ def main() -> None:
         serve_main(sys.argv[2:])
         return
     cli(prog_name="jeanscv")
-
-
-def _usual_interrupts() -> None:
-    """Ctrl-C raises KeyboardInterrupt and SIGTERM is the default again (the command's
-    own handling, from here on), where :func:`exit_at_once_on_interrupt` changed them."""
-    try:
-        if getattr(signal.getsignal(signal.SIGINT), "__qualname__", "").startswith("exit_at_once_on_interrupt"):
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-        if getattr(signal.getsignal(signal.SIGTERM), "__qualname__", "").startswith("exit_at_once_on_interrupt"):
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    except ValueError:
-        pass
 
 
 if __name__ == "__main__":

@@ -417,7 +417,7 @@ def test_an_interrupt_while_the_command_starts_is_quiet(args, sig, status):
     parsing would be, right after the entry point's first step."""
     script = (
         "import os, sys, time\n"
-        "import jeanscv_cli._entry as entry\n"
+        "import jeanscv_cli.interrupts as entry\n"
         f"sys.argv = ['jeanscv', *{args!r}]\n"
         "entry.exit_at_once_on_interrupt(0 if sys.argv[1:2] == ['serve'] else 130)\n"
         f"os.kill(os.getpid(), {sig})\n"
