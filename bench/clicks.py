@@ -4,6 +4,8 @@
     python -m bench.clicks FOLDER [FOLDER ...]   # any folders of NAME.jpg + NAME.mask.png
     python -m bench.clicks --megapixels 12       # photos upscaled to 12 MP (click latency)
     python -m bench.clicks --sheet docs/clicks.jpg
+    python -m bench.clicks --box                 # a box first (the reference mask's), then clicks
+    python -m bench.clicks --width 4000          # every photo resized to 4000 px wide first
 
 The protocol (Xu et al. 2016; RITM, Sofiiuk et al. 2022): the first click at the
 interior point of the reference mask farthest from its boundary (the image border counts
@@ -27,12 +29,14 @@ import cv2
 import numpy as np
 from PIL import Image
 
+from jeanscv.errors import JeansError
 from jeanscv.io.image import load_image
 from jeanscv.subject.consensus import iou
 from jeanscv.subject.interactive import ClickSession, simulated_click
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "real_photos"
+PETS = ROOT.parent / "shared" / "pet_photos"
 MAX_CLICKS = 10
 
 
@@ -48,9 +52,16 @@ def photo_pairs(folders: list[Path]) -> list[tuple[str, Path, Path]]:
     return pairs
 
 
-def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS) -> dict:
-    """Simulate ``clicks`` clicks: IoU after each, the set-up and per-click seconds, the
-    clicks made and the mask after (at most) three of them."""
+def reference_box(reference: np.ndarray) -> tuple[int, int, int, int]:
+    """The tight box ``(x0, y0, x1, y1)`` of the reference mask (end exclusive), as a person drags it."""
+    ys, xs = np.nonzero(reference)
+    return int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
+
+
+def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS, box: bool = False) -> dict:
+    """Simulate ``clicks`` clicks (after the reference's box, with ``box``): IoU after
+    each, the set-up and per-click seconds, the clicks made and the mask after (at most)
+    three of them; with ``box`` also the box alone's IoU (``box_iou``)."""
     start = time.perf_counter()
     session = ClickSession(pixels)
     setup = time.perf_counter() - start
@@ -58,17 +69,33 @@ def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICK
     negative: list = []
     ious, seconds, made = [], [], []
     predicted = None
+    drawn = reference_box(reference) if box else None
+    result: dict = {}
+    if drawn is not None:
+        start = time.perf_counter()
+        predicted = _segment(session, [], [], drawn)
+        result["box_seconds"] = time.perf_counter() - start
+        result["box_iou"] = iou(predicted, reference)
+        after_three = predicted
     for _ in range(clicks):
         sign, point = simulated_click(reference, predicted)
         (positive if sign else negative).append(point)
         made.append((sign, point))
         start = time.perf_counter()
-        predicted = session.segment(positive, negative).mask
+        predicted = _segment(session, positive, negative, drawn)
         seconds.append(time.perf_counter() - start)
         ious.append(iou(predicted, reference))
         if len(made) <= 3:
             after_three = predicted
-    return {"ious": ious, "seconds": seconds, "setup": setup, "clicks": made, "after_three": after_three}
+    return result | {"ious": ious, "seconds": seconds, "setup": setup, "clicks": made, "after_three": after_three}
+
+
+def _segment(session: ClickSession, positive: list, negative: list, box) -> np.ndarray:
+    """The session's mask, or an empty one where it found nothing (scored 0)."""
+    try:
+        return session.segment(positive, negative, box).mask
+    except JeansError:
+        return np.zeros(session.shape, bool)
 
 
 def noc(ious: list[float], level: float) -> int:
@@ -120,11 +147,25 @@ def main() -> None:
     parser.add_argument("--megapixels", type=float, help="upscale every photo to this size first")
     parser.add_argument("--sheet", type=Path, help="write a contact sheet (after 3 clicks) here")
     parser.add_argument("--clicks", type=int, default=MAX_CLICKS)
+    parser.add_argument("--box", action="store_true", help="a box (the reference mask's) first, then the clicks")
+    parser.add_argument("--width", type=int, help="resize every photo to this width first")
     args = parser.parse_args()
-    folders = args.folders or [SHARED]
-    pairs = photo_pairs([f for f in folders if f.is_dir()])
-    if not pairs:
+    folders = args.folders or [SHARED, PETS]
+    sets = [(folder, photo_pairs([folder])) for folder in folders if folder.is_dir()]
+    sets = [(folder, pairs) for folder, pairs in sets if pairs]
+    if not sets:
         raise SystemExit(f"no NAME.mask.png with a photo beside it in {', '.join(map(str, folders))}")
+    means = [(folder, run_set(pairs, args)) for folder, pairs in sets]
+    if len(means) > 1 or args.box:
+        print()
+        print(f"| set | {'box | ' if args.box else ''}IoU@1 | IoU@3 | IoU@5 | NoC@85 | IoU@1 >= 0.5 | empty answers |")
+        print(f"|---|{'---:|' if args.box else ''}---:|---:|---:|---:|---:|---:|")
+        for folder, line in means:
+            print(f"| {folder.name} | {line} |")
+
+
+def run_set(pairs: list, args) -> str:
+    """Simulate every photo of one set; prints its table and returns its means' row."""
     print("| photo | IoU@1 | IoU@2 | IoU@3 | IoU@5 | NoC@85 | NoC@90 | set-up s | first click s | s/click |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     results, sheet = [], []
@@ -133,7 +174,11 @@ def main() -> None:
         reference = np.asarray(Image.open(mask_path).convert("L")) >= 128
         if args.megapixels:
             pixels, reference = upscale(pixels, reference, args.megapixels)
-        result = run_photo(pixels, reference, args.clicks)
+        if args.width:
+            pixels, reference = upscale(
+                pixels, reference, args.width**2 * reference.shape[0] / reference.shape[1] / 1e6
+            )
+        result = run_photo(pixels, reference, args.clicks, box=args.box)
         result["ious"] = ious = result["ious"] + [result["ious"][-1]] * (MAX_CLICKS - len(result["ious"]))
         result["noc85"], result["noc90"] = noc(ious, 0.85), noc(ious, 0.90)
         results.append(result)
@@ -160,6 +205,13 @@ def main() -> None:
     if args.sheet:
         contact_sheet(sheet, args.sheet)
         print(f"contact sheet: {args.sheet}")
+    usable = sum(r["ious"][0] >= 0.5 for r in results)
+    empty = sum(value == 0.0 for r in results for value in r["ious"] + [r.get("box_iou", 1.0)])
+    box = f"{mean('box_iou'):.3f} | " if args.box else ""
+    return (
+        f"{box}{mean('ious', 0):.3f} | {mean('ious', 2):.3f} | {mean('ious', 4):.3f} | {mean('noc85'):.2f} "
+        f"| {usable} of {len(results)} | {empty}"
+    )
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ Examples:
   jeanscv pets.jpg --objects all        jeans on every separate object
   jeanscv pets.jpg --point 420,310      jeans on the object under that pixel (a click)
   jeanscv pets.jpg --point 420,310 --background-point 90,40   ...and not on that
+  jeanscv pets.jpg --box 300,180,640,470   jeans on the thing in that box (x0,y0,x1,y1)
   jeanscv pets.jpg --clicks pets.clicks.json                   replay saved clicks
   jeanscv car.jpg --posture any         jeans in any posture, lying ones too
   jeanscv serve [FOLDER]                a local web page: drop a photo, click the subject
@@ -70,6 +71,22 @@ def _parse_points(ctx: click.Context, param: click.Parameter, values: tuple[str,
             raise click.BadParameter(f"expected finite numbers X,Y, got {value!r}")
         points.append((x, y))
     return tuple(points)
+
+
+def _parse_box(ctx: click.Context, param: click.Parameter, value: str | None):
+    if value is None:
+        return None
+    try:
+        x0, y0, x1, y1 = (float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(
+            f"expected four numbers X0,Y0,X1,Y1 (image pixels), e.g. 100,50,620,480; got {value!r}"
+        ) from None
+    if not all(abs(v) < float("inf") for v in (x0, y0, x1, y1)):
+        raise click.BadParameter(f"expected finite numbers, got {value!r}")
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        raise click.BadParameter("the box needs X0 < X1 and Y0 < Y1, at least 2 pixels apart")
+    return x0, y0, x1, y1
 
 
 def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> None:
@@ -198,7 +215,15 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     multiple=True,
     callback=_parse_points,
     metavar="X,Y",
-    help="A click on something that is not that object (repeatable; with --point).",
+    help="A click on something that is not that object (repeatable; with --point or --box).",
+)
+@click.option(
+    "--box",
+    "box",
+    callback=_parse_box,
+    metavar="X0,Y0,X1,Y1",
+    help="A box around the object that should wear the jeans (pixels of the photo; alone or with "
+    "--point and --background-point; one input).",
 )
 @click.option(
     "--clicks",
@@ -337,8 +362,10 @@ def _main(
         raise _usage("--mask needs exactly one input image")
     if values["points"] and not single:
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
-    if values["background_points"] and not values["points"]:
-        raise _usage("--background-point needs a --point on the object too")
+    if values["box"] is not None and not single:
+        raise _usage("--box needs exactly one input image (its pixels are that image's)")
+    if values["background_points"] and not values["points"] and values["box"] is None:
+        raise _usage("--background-point needs a --point or a --box on the object too")
     if values["clicks"] is not None and not single:
         raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
     options = JeansOptions(**values, device=device, backend=backend)

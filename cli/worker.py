@@ -62,7 +62,7 @@ def saved_clicks(job: Job, options: JeansOptions) -> Path | None:
     it uses unless ``--point``, ``--clicks`` or ``--mask`` say what the subject is."""
     from jeanscv.subject.clicks import sidecar_path
 
-    if options.points or options.clicks is not None or options.mask is not None:
+    if options.points or options.box is not None or options.clicks is not None or options.mask is not None:
         return None
     sidecar = sidecar_path(job.path)
     return sidecar if sidecar.is_file() else None
@@ -139,7 +139,7 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
         "objects": [_object_info(obj) for obj in result.objects],
     }
     subject = result.silhouette.details
-    if subject.get("uncertain") and not options.points and options.clicks is None:
+    if subject.get("uncertain") and not options.points and options.box is None and options.clicks is None:
         outcome.info["note"] = (
             f"unsure which thing is the subject (the segmentation's hypotheses overlap by {subject['consensus']:.2f} "
             "on average); if the jeans missed it, click it with --point X,Y"

@@ -57,7 +57,8 @@ class JeansOptions:
     (an ``(H, W)`` array or an image file: the object, instead of segmenting), ``objects``;
     clicks that fix the subject (pixels of the photo as displayed; see
     :func:`jeanscv.subject.extraction.extract_silhouettes`): ``points`` and ``background_points``
-    (one object's positive and negative clicks) and ``clicks`` (several objects': a
+    (one object's positive and negative clicks), ``box`` (``(x0, y0, x1, y1)``: that
+    object lies inside it; with or without clicks) and ``clicks`` (several objects': a
     :class:`~jeanscv.subject.clicks.Clicks` or a clicks file).
 
     Look: ``style``, ``clip`` (paint only on the object); ``top`` and ``bottom``
@@ -85,6 +86,7 @@ class JeansOptions:
     objects: str = _choice("one", OBJECTS, "objects")
     points: tuple[tuple[float, float], ...] = ()
     background_points: tuple[tuple[float, float], ...] = ()
+    box: tuple[float, float, float, float] | None = None
     clicks: Clicks | str | os.PathLike | None = None
     # Look.
     style: str = _choice("denim", STYLES, "style")
@@ -101,6 +103,8 @@ class JeansOptions:
         # Lists and other sequences of points are kept as a tuple, so options stay immutable.
         object.__setattr__(self, "points", tuple(self.points or ()))
         object.__setattr__(self, "background_points", tuple(self.background_points or ()))
+        if self.box is not None:
+            object.__setattr__(self, "box", tuple(self.box))
         for option in dataclasses.fields(self):
             choices = option.metadata.get("choices")
             value = getattr(self, option.name)

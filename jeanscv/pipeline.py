@@ -93,7 +93,7 @@ def prepare_input(
     ``shared``: a :class:`~jeanscv.subject.photo.SharedHypotheses` that keeps auto's
     hypotheses of the photo for a click session of ``pixels`` (a server clicks on it next).
     Photos give one silhouette per object (see :func:`extract_silhouettes`; ``points``,
-    ``background_points`` and ``clicks`` are pixels of the photo as displayed, also for a
+    ``background_points``, ``box`` and ``clicks`` are pixels of the photo as displayed, also for a
     RAW file decoded at half size; ``clicks`` may be a clicks file); silhouette drawings
     and SVGs give their one shape.
     """
@@ -123,7 +123,7 @@ def prepare_input(
                 raise JeansError("not a silhouette image (no alpha and not two-toned)")
             return [silhouette_from_alpha(alpha, "drawing")], "silhouette", pixels, loaded
     clicks = None
-    if mask is None and (points or options.background_points or options.clicks is not None):
+    if mask is None and (points or options.background_points or options.box is not None or options.clicks is not None):
         # Checked against the photo as displayed, then scaled to the decoded copy.
         clicks = _clicks(options, loaded.original_size if loaded is not None else pixels.shape[1::-1])
         if clicks.image_size != pixels.shape[1::-1]:
@@ -158,7 +158,8 @@ def _clicks(options: JeansOptions, shown: tuple[int, int]):
 
     clicks = options.clicks
     found = Clicks(
-        tuple(object_clicks(options.points, options.background_points, clicks)), getattr(clicks, "image_size", None)
+        tuple(object_clicks(options.points, options.background_points, clicks, options.box)),
+        getattr(clicks, "image_size", None),
     )
     found.check(shown)
     return Clicks(found.objects, tuple(shown))

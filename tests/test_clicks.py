@@ -122,7 +122,7 @@ def test_auto_and_a_session_cut_the_hypotheses_once_with_the_same_results(monkey
 
 
 def test_session_refuses_clicks_it_cannot_use():
-    with pytest.raises(JeansError, match="at least one positive click"):
+    with pytest.raises(JeansError, match="a positive click or a box"):
         session().segment([], [HEAD_CLICK])
     with pytest.raises(JeansError, match=r"click \(320, 5\) is outside the 320x240 image"):
         session().segment([(320, 5)])
@@ -156,11 +156,18 @@ def test_clicks_file_round_trip(tmp_path):
     [
         ("{not json", "not valid JSON"),
         ("[1, 2]", "not a clicks file"),
-        ('{"format": "jeanscv-clicks", "version": 2, "objects": []}', "version 2 is not supported"),
+        ('{"format": "jeanscv-clicks", "version": 3, "objects": []}', "version 3 is not supported"),
+        ('{"format": "jeanscv-clicks", "version": true, "objects": []}', "version True is not supported"),
+        ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"box": [1, 2, 30, 40]}]}', "needs a version 2"),
+        ('{"format": "jeanscv-clicks", "version": 2, "objects": [{"box": [30, 2, 1, 40]}]}', "x0 < x1"),
+        ('{"format": "jeanscv-clicks", "version": 2, "objects": [{"box": [1, 2, 3]}]}', "four numbers"),
         ('{"format": "jeanscv-clicks", "version": 1, "objects": []}', '"objects" must be a non-empty list'),
         ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [["a", 1]]}]}', "two numbers"),
         ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[1, 2, 3]]}]}', "two numbers"),
-        ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"negative": [[1, 2]]}]}', "one positive click"),
+        (
+            '{"format": "jeanscv-clicks", "version": 1, "objects": [{"negative": [[1, 2]]}]}',
+            "a positive click or a box",
+        ),
         (
             '{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[1, 2]], "negative": [[1.5, 2.5]]}]}',
             "on top of a positive one",
@@ -287,10 +294,82 @@ def test_a_bad_saved_clicks_file_fails_that_photo_only(tmp_path, run_cli, conten
 
 def test_cli_click_options_need_one_input_and_a_positive_click(figure_png, run_cli, tmp_path):
     result = run_cli(figure_png, "--background-point", "5,5")
-    assert result.exit_code == 2 and "--background-point needs a --point" in result.stderr
+    assert result.exit_code == 2 and "--background-point needs a --point or a --box" in result.stderr
     other = tmp_path / "other.png"
     other.write_bytes(figure_png.read_bytes())
     result = run_cli(figure_png, other, "--clicks", tmp_path / "x.json")
     assert result.exit_code == 2 and "--clicks needs exactly one input image" in result.stderr
     result = run_cli(figure_png, "--point", "90.5,130.5", "--background-point", "90.5,130.5", *CLI_FIT)
     assert result.exit_code == 1 and "is on top of a positive one" in result.stderr
+
+
+# ------------------------------------------------------------------ boxes
+
+BODY_BOX = (30.0, 70.0, 150.0, 190.0)  # the body and a few pixels of background round it
+
+
+def test_a_box_alone_takes_the_object_in_it_and_nothing_outside():
+    _, body, head, disc = figure()
+    mask = session().segment([], [], BODY_BOX).mask
+    assert share(mask, body) > 0.98
+    outside = np.ones_like(mask)
+    outside[70:190, 30:150] = False
+    assert not (mask & outside).any() and share(mask, disc) == 0
+    assert mask.sum() < 1.03 * body.sum()  # the grey round it is left out
+
+
+def test_a_box_with_clicks():
+    """With positive clicks the click engine segments and the box clips: the head and
+    body as one click takes them, minus what lies outside the box."""
+    _, body, head, _ = figure()
+    both = (20.0, 60.0, 200.0, 200.0)  # body and head
+    whole = session().segment([], [], both).mask
+    assert share(whole, body) > 0.98 and share(whole, head) > 0.95
+    clicked = session().segment([BODY_CLICK], [], both).mask
+    assert np.array_equal(clicked, session().segment([BODY_CLICK]).mask)  # all inside the box
+    clipped = session().segment([BODY_CLICK], [], (20.0, 60.0, 150.0, 200.0)).mask
+    assert share(clipped, body) > 0.98 and share(clipped, head) <= 0.25 and not clipped[:, 150:].any()
+    negative = session().segment([], [HEAD_CLICK], both).mask
+    assert share(negative, body) > 0.98 and not negative[130, 160]
+
+
+def test_a_box_that_holds_nothing_says_so():
+    with pytest.raises(JeansError, match="nothing found in that box"):
+        session().segment([], [], (200.0, 200.0, 240.0, 238.0))  # grey noise only
+    with pytest.raises(JeansError, match=r"click \(90.5, 130.5\) is outside its object's box"):
+        Clicks((ObjectClicks((BODY_CLICK,), (), (200, 10, 300, 60)),)).check((320, 240))
+    with pytest.raises(JeansError, match="not inside the 320x240 image"):
+        Clicks((ObjectClicks((), (), (200, 10, 330, 60)),)).check((320, 240))
+
+
+def test_boxes_in_the_clicks_file_are_version_2_and_version_1_is_still_read(tmp_path):
+    clicks = Clicks((ObjectClicks((), (HEAD_CLICK,), BODY_BOX), ObjectClicks((DISC_CLICK,))), (320, 240))
+    path = tmp_path / "figure.clicks.json"
+    write_clicks(path, clicks)
+    assert read_clicks(path) == clicks
+    data = json.loads(path.read_text())
+    assert data["version"] == 2 and data["objects"][0] == {
+        "positive": [],
+        "negative": [list(HEAD_CLICK)],
+        "box": list(BODY_BOX),
+    }
+    old = '{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[90.5, 130.5]]}]}'
+    assert loads_clicks(old) == Clicks.single([BODY_CLICK])
+
+
+def test_extract_silhouettes_and_the_command_line_with_a_box(figure_png, run_cli, tmp_path):
+    image, body, _, _ = figure()
+    (found,) = extract_silhouettes(image, box=BODY_BOX)
+    assert found.method == "clicks" and share(found.mask, body) > 0.98
+    assert found.details["clicks"] == {"positive": [], "negative": [], "box": list(BODY_BOX)}
+    result = run_cli(figure_png, "--box", "30,70,150,190", "-o", tmp_path, "--json", *CLI_FIT)
+    assert result.exit_code == 0, result.stderr
+    report = json.loads((tmp_path / "figure.jeans.json").read_text())
+    api = apply_jeans(str(figure_png), box=BODY_BOX, **FIT).report("figure.png")
+    assert report["vertices_image"] == api["vertices_image"]
+    other = tmp_path / "other.png"
+    other.write_bytes(figure_png.read_bytes())
+    refused = run_cli(figure_png, other, "--box", "30,70,150,190")
+    assert refused.exit_code == 2 and "--box needs exactly one input image" in refused.stderr
+    refused = run_cli(figure_png, "--box", "150,70,30,190")
+    assert refused.exit_code == 2 and "X0 < X1" in refused.stderr

@@ -36,6 +36,7 @@ from jeanscv import api
 from jeanscv.errors import JeansError
 from jeanscv.options import POSTURES, STYLES, JeansOptions
 from jeanscv.run.runner import encode_picture, report_text
+from jeanscv.subject.clicks import VERSION as CLICKS_VERSION
 from jeanscv.subject.clicks import Clicks, read_clicks, sidecar_path, write_clicks
 from jeanscv.subject.framing import Framing
 from jeanscv.subject.silhouettes import box_of
@@ -256,7 +257,7 @@ def silhouettes_from_clicks(photo: Photo, clicks: Clicks) -> list:
 def _clicks_key(clicks: Clicks | None) -> tuple:
     if clicks is None:
         return ()
-    return tuple((obj.positive, obj.negative) for obj in clicks.objects)
+    return tuple((obj.positive, obj.negative, obj.box) for obj in clicks.objects)
 
 
 def fitted_objects(photo: Photo, clicks: Clicks | None, options: RenderOptions, backend: str | None) -> list:
@@ -460,17 +461,18 @@ def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) 
 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
-    """The page's clicks (``[{"positive": [[x, y]...], "negative": [...]}...]``), or None for none."""
+    """The page's clicks (``[{"positive": [[x, y]...], "negative": [...], "box": [x0, y0, x1, y1]}...]``,
+    ``box`` optional), or None for none."""
     from jeanscv.subject.clicks import parse_clicks
 
     if data is None or data == []:
         return None
     if not isinstance(data, list):
         raise JeansError('"objects" must be a list of {"positive": [[x, y], ...], "negative": [...]}')
-    objects = [obj for obj in data if isinstance(obj, dict) and obj.get("positive")]
+    objects = [obj for obj in data if isinstance(obj, dict) and (obj.get("positive") or obj.get("box"))]
     if not objects:
         return None
-    document = {"format": "jeanscv-clicks", "version": 1, "objects": objects}
+    document = {"format": "jeanscv-clicks", "version": CLICKS_VERSION, "objects": objects}
     clicks = parse_clicks(json.loads(json.dumps(document)))
     return Clicks(clicks.objects, (int(size[0]), int(size[1])))
 

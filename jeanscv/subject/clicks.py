@@ -15,15 +15,17 @@ The clicks file (``NAME.clicks.json``, written by the web page and by
 
     {
       "format": "jeanscv-clicks",
-      "version": 1,
+      "version": 2,
       "image": {"width": 4032, "height": 3024},
       "objects": [
         {"positive": [[1210.5, 1877.0]], "negative": [[2410.0, 900.5]]},
-        {"positive": [[3000.0, 2000.0]], "negative": []}
+        {"positive": [[3000.0, 2000.0]], "negative": [], "box": [2700, 1500, 3600, 2600]}
       ]
     }
 
-``image`` records the size the clicks were made on; a file whose size does not match
+An object may have a ``box`` ``[x0, y0, x1, y1]`` (version 2; a box alone, without
+positive clicks, is enough). A file whose objects have no box is written as version 1,
+which older jeanscv reads; both versions are read. ``image`` records the size the clicks were made on; a file whose size does not match
 the photo it is replayed on is refused (the clicks would land on the wrong things).
 ``image`` may be omitted by hand-written files: then only the bounds are checked.
 """
@@ -41,7 +43,10 @@ from pathlib import Path
 from ..errors import JeansError
 
 FORMAT = "jeanscv-clicks"
-VERSION = 1
+#: The version written when an object has a box (version 2 added boxes); files without
+#: boxes are written as version 1, which every jeanscv reads.
+VERSION = 2
+READS = (1, 2)
 #: The sidecar a folder's photo keeps its clicks in: ``cat.jpg`` -> ``cat.clicks.json``.
 SIDECAR_SUFFIX = ".clicks.json"
 #: Bigger clicks files are refused before parsing (a person makes a few dozen clicks).
@@ -53,18 +58,26 @@ MAX_CLICKS = 256
 Point = tuple[float, float]
 
 
+Box = tuple[float, float, float, float]
+
+
 @dataclass(frozen=True)
 class ObjectClicks:
-    """The clicks of one object: ``positive`` on it, ``negative`` off it (image pixels)."""
+    """The clicks of one object: ``positive`` on it, ``negative`` off it, and optionally
+    a ``box`` ``(x0, y0, x1, y1)`` that holds it (image pixels; the object lies inside,
+    everything outside is background). An object needs a positive click or a box."""
 
     positive: tuple[Point, ...]
     negative: tuple[Point, ...] = ()
+    box: Box | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "positive", tuple(_point(p) for p in self.positive))
         object.__setattr__(self, "negative", tuple(_point(p) for p in self.negative))
-        if not self.positive:
-            raise JeansError("an object needs at least one positive click")
+        if self.box is not None:
+            object.__setattr__(self, "box", _box(self.box))
+        if not self.positive and self.box is None:
+            raise JeansError("an object needs a positive click or a box")
         if len(self.positive) + len(self.negative) > MAX_CLICKS:
             raise JeansError(f"an object has more than {MAX_CLICKS} clicks")
         taken = {_pixel(p) for p in self.positive}
@@ -72,8 +85,19 @@ class ObjectClicks:
             if _pixel(point) in taken:
                 raise JeansError(f"negative click ({point[0]:g}, {point[1]:g}) is on top of a positive one")
 
+    @property
+    def anchor(self) -> Point:
+        """Where the object is: its first positive click, else its box's centre."""
+        if self.positive:
+            return self.positive[0]
+        x0, y0, x1, y1 = self.box
+        return ((x0 + x1) / 2, (y0 + y1) / 2)
+
     def to_json(self) -> dict:
-        return {"positive": [list(p) for p in self.positive], "negative": [list(p) for p in self.negative]}
+        data = {"positive": [list(p) for p in self.positive], "negative": [list(p) for p in self.negative]}
+        if self.box is not None:
+            data["box"] = list(self.box)
+        return data
 
 
 @dataclass(frozen=True)
@@ -102,10 +126,19 @@ class Clicks:
             w, h = self.image_size
             raise JeansError(f"the clicks were made on a {w}x{h} image, this one is {width}x{height}")
         for index, obj in enumerate(self.objects):
+            which = f"object {index + 1}: " if len(self.objects) > 1 else ""
             for x, y in obj.positive + obj.negative:
                 if not (0 <= x < width and 0 <= y < height):
-                    which = f"object {index + 1}: " if len(self.objects) > 1 else ""
                     raise JeansError(f"{which}click ({x:g}, {y:g}) is outside the {width}x{height} image")
+            if obj.box is not None:
+                x0, y0, x1, y1 = obj.box
+                if x0 < 0 or y0 < 0 or x1 > width or y1 > height:
+                    raise JeansError(
+                        f"{which}box ({x0:g}, {y0:g}, {x1:g}, {y1:g}) is not inside the {width}x{height} image"
+                    )
+                for x, y in obj.positive:
+                    if not (x0 <= x < x1 and y0 <= y < y1):
+                        raise JeansError(f"{which}click ({x:g}, {y:g}) is outside its object's box")
 
     def scaled(self, size: tuple[int, int]) -> Clicks:
         """The clicks in pixels of a copy of the image at ``size`` = (width, height)
@@ -117,12 +150,17 @@ class Clicks:
         def scale(points):
             return tuple((x * sx, y * sy) for x, y in points)
 
-        objects = tuple(ObjectClicks(scale(o.positive), scale(o.negative)) for o in self.objects)
+        def scale_box(box):
+            return None if box is None else (box[0] * sx, box[1] * sy, box[2] * sx, box[3] * sy)
+
+        objects = tuple(ObjectClicks(scale(o.positive), scale(o.negative), scale_box(o.box)) for o in self.objects)
         return Clicks(objects, tuple(size), self.extra)
 
     def to_json(self) -> dict:
         """The clicks file's JSON object."""
-        data: dict = {"format": FORMAT, "version": VERSION}
+        # Version 1 where no object has a box: older jeanscv reads those files.
+        version = VERSION if any(obj.box is not None for obj in self.objects) else 1
+        data: dict = {"format": FORMAT, "version": version}
         if self.image_size is not None:
             data["image"] = {"width": int(self.image_size[0]), "height": int(self.image_size[1])}
         data["objects"] = [obj.to_json() for obj in self.objects]
@@ -157,6 +195,17 @@ def _shown(value) -> str:
     return text[:80]
 
 
+def _box(value) -> Box:
+    """A box ``(x0, y0, x1, y1)`` of finite floats with ``x0 < x1`` and ``y0 < y1``, else JeansError."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 4:
+        raise JeansError(f"a box must be four numbers [x0, y0, x1, y1], got {_shown(value)}")
+    x0, y0 = _point(value[:2])
+    x1, y1 = _point(value[2:])
+    if not (x1 - x0 >= 2 and y1 - y0 >= 2):
+        raise JeansError(f"a box must be at least 2x2 pixels with x0 < x1 and y0 < y1, got {_shown(value)}")
+    return x0, y0, x1, y1
+
+
 def _pixel(point: Point) -> tuple[int, int]:
     return math.floor(point[0]), math.floor(point[1])
 
@@ -168,8 +217,8 @@ def parse_clicks(data) -> Clicks:
     if data.get("format") != FORMAT:
         raise JeansError(f'not a clicks file (no "format": "{FORMAT}")')
     version = data.get("version")
-    if version != VERSION:
-        raise JeansError(f"clicks file version {version!r} is not supported (this jeanscv reads version {VERSION})")
+    if version not in READS or isinstance(version, bool):
+        raise JeansError(f"clicks file version {version!r} is not supported (this jeanscv reads versions 1 and 2)")
     image_size = None
     if "image" in data:
         image = data["image"]
@@ -192,8 +241,11 @@ def parse_clicks(data) -> Clicks:
         positive, negative = obj.get("positive", []), obj.get("negative", [])
         if not isinstance(positive, list) or not isinstance(negative, list):
             raise JeansError(f'object {index + 1}: "positive" and "negative" must be lists of [x, y]')
+        box = obj.get("box")
+        if box is not None and version < 2:
+            raise JeansError(f'object {index + 1}: "box" needs a version 2 clicks file')
         try:
-            parsed.append(ObjectClicks(tuple(positive), tuple(negative)))
+            parsed.append(ObjectClicks(tuple(positive), tuple(negative), box))
         except JeansError as exc:
             raise JeansError(f"object {index + 1}: {exc}") from None
     extra = {k: v for k, v in data.items() if k not in ("format", "version", "image", "objects")}

@@ -49,22 +49,23 @@ def extract_silhouette(
     )
 
 
-def object_clicks(points, background_points, clicks) -> list:
-    """Every object's clicks (:class:`jeanscv.subject.clicks.ObjectClicks`): ``points`` and
-    ``background_points`` are one object's, ``clicks`` a :class:`jeanscv.subject.clicks.Clicks`
-    or a list of per-object ``{"positive": [...], "negative": [...]}``."""
-    from .clicks import Clicks, ObjectClicks, parse_clicks
+def object_clicks(points, background_points, clicks, box=None) -> list:
+    """Every object's clicks (:class:`jeanscv.subject.clicks.ObjectClicks`): ``points``,
+    ``background_points`` and ``box`` are one object's, ``clicks`` a
+    :class:`jeanscv.subject.clicks.Clicks` or a list of per-object
+    ``{"positive": [...], "negative": [...], "box": [x0, y0, x1, y1]}``."""
+    from .clicks import VERSION, Clicks, ObjectClicks, parse_clicks
 
     objects = []
-    if points or background_points:
-        if not points:
-            raise JeansError("a background click needs a positive click on the object too")
-        objects.append(ObjectClicks(tuple(points), tuple(background_points or ())))
+    if points or background_points or box is not None:
+        if not points and box is None:
+            raise JeansError("a background click needs a positive click on the object too (or a box)")
+        objects.append(ObjectClicks(tuple(points or ()), tuple(background_points or ()), box))
     if clicks is not None:
         if isinstance(clicks, Clicks):
             objects += clicks.objects
         else:
-            objects += parse_clicks({"format": "jeanscv-clicks", "version": 1, "objects": list(clicks)}).objects
+            objects += parse_clicks({"format": "jeanscv-clicks", "version": VERSION, "objects": list(clicks)}).objects
     return objects
 
 
@@ -76,6 +77,7 @@ def extract_silhouettes(
     points: list[tuple[float, float]] | None = None,
     background_points: list[tuple[float, float]] | None = None,
     clicks=None,
+    box: tuple[float, float, float, float] | None = None,
     threshold: float | None = None,
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
@@ -93,7 +95,10 @@ def extract_silhouettes(
     ``{"positive": [...], "negative": [...]}``), after the object of ``points``. Each
     clicked object is segmented by a :class:`~jeanscv.subject.interactive.ClickSession`
     (method ``"clicks"``): its mask holds every positive click and none of the negative
-    ones. The clicked objects come first, in order; with ``"all"`` the automatic objects
+    ones. ``box`` ``(x0, y0, x1, y1)`` (pixels, x right, y down) holds the object of
+    ``points``: the object is cut inside it, alone or with the clicks; per-object boxes
+    come in ``clicks``. A click or box that finds nothing raises JeansError ("nothing
+    found there"), never an empty object. The clicked objects come first, in order; with ``"all"`` the automatic objects
     that they do not cover follow. With a user ``mask``, ``points`` pick the mask's pieces
     instead. Every silhouette's ``details`` holds its ``box`` (x, y, w, h); a clicked
     one also its ``clicks`` and ``point`` (its first positive click). ``shared``: a
@@ -105,10 +110,10 @@ def extract_silhouettes(
         raise JeansError(f"unknown objects {objects!r} (use {' or '.join(OBJECTS)})")
     pixels = np.asarray(image)
     if mask is not None:
-        if background_points or clicks is not None:
+        if background_points or clicks is not None or box is not None:
             raise JeansError("clicks refine the automatic segmentation: they cannot be combined with a mask")
         return _mask_objects(pixels, method, objects, points, threshold, rect, mask)
-    wanted = object_clicks(points, background_points, clicks)
+    wanted = object_clicks(points, background_points, clicks, box)
     if not wanted:
         main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
         found = split_objects(main.mask) if objects == "all" else []
@@ -147,7 +152,7 @@ def clicked_silhouettes(session, objects) -> list[Silhouette]:
     positive click as ``point`` and its ``box``."""
     found = []
     for obj in objects:
-        silhouette = _framed(session.segment(obj.positive, obj.negative), obj.positive[0])
+        silhouette = _framed(session.segment(obj.positive, obj.negative, obj.box), obj.anchor)
         silhouette.details["clicks"] = obj.to_json()
         found.append(silhouette)
     return found
