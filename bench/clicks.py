@@ -91,11 +91,15 @@ def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICK
 
 
 def _segment(session: ClickSession, positive: list, negative: list, box) -> np.ndarray:
-    """The session's mask, or an empty one where it found nothing (scored 0)."""
+    """The session's mask; where it found nothing, the positive clicks' pixels alone (what
+    it answered before it said so), so the next simulated click is made as then."""
     try:
         return session.segment(positive, negative, box).mask
     except JeansError:
-        return np.zeros(session.shape, bool)
+        found = np.zeros(session.shape, bool)
+        for x, y in positive:
+            found[int(y), int(x)] = True
+        return found
 
 
 def noc(ious: list[float], level: float) -> int:
@@ -206,7 +210,7 @@ def run_set(pairs: list, args) -> str:
         contact_sheet(sheet, args.sheet)
         print(f"contact sheet: {args.sheet}")
     usable = sum(r["ious"][0] >= 0.5 for r in results)
-    empty = sum(value == 0.0 for r in results for value in r["ious"] + [r.get("box_iou", 1.0)])
+    empty = sum(value < 0.001 for r in results for value in r["ious"] + [r.get("box_iou", 1.0)])
     box = f"{mean('box_iou'):.3f} | " if args.box else ""
     return (
         f"{box}{mean('ious', 0):.3f} | {mean('ious', 2):.3f} | {mean('ious', 4):.3f} | {mean('noc85'):.2f} "

@@ -267,3 +267,32 @@ def test_another_sites_page_changes_nothing_in_folder_mode(tmp_path):
         attacker.shutdown()
         uv.should_exit = True
         thread.join(timeout=15)
+
+
+def test_a_click_on_plain_background_says_so_and_keeps_the_picture(server):
+    """Issue 32's third bug: a click beside the subject made a 1x1 object and the jeans
+    vanished with "1 object, from your clicks". Now the page says nothing was found there
+    and keeps the picture, outline and markers as they were."""
+    problem = _browser_missing()
+    assert not problem, problem
+    from playwright.sync_api import sync_playwright
+
+    photo = two_objects()
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"], headless=True)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 860})
+            page.goto(server + "/")
+            page.wait_for_selector("#garment option", state="attached")
+            _drop_photo(page, photo.image)
+            before = page.get_attribute("#result", "src")
+            box = page.locator("#result").bounding_box()
+            page.mouse.click(box["x"] + 20.5 / 800 * box["width"], box["y"] + 20.5 / 500 * box["height"])
+            page.wait_for_function("() => !document.getElementById('error').hidden", timeout=60_000)
+            assert "nothing found there: click inside the subject" in page.inner_text("#error")
+            page.wait_for_timeout(200)
+            assert page.locator("#overlay circle.click").count() == 0  # the click was taken back
+            assert page.get_attribute("#result", "src") == before
+            assert page.locator("#overlay path.outline").count() >= 1  # the automatic outline is still drawn
+        finally:
+            browser.close()

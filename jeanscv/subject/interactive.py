@@ -116,6 +116,8 @@ class ClickSession:
         }
         self._cache: dict[tuple, np.ndarray] = {}
         self._seed_radius = max(1, round(_SEED_FRACTION * min(self.size)))
+        #: Fewer working pixels than a click's seed disc are no object (see :meth:`segment`).
+        self._smallest = max(4, int(math.pi * self._seed_radius**2))
         self._graph = _ClickGraph(self.rgb)
         self._pixels = _PixelRefiner(self.rgb)
 
@@ -137,13 +139,16 @@ class ClickSession:
         Clicks are applied in order: positive ones first as given, then negative ones;
         the mask holds every positive click and none of the negative ones. With a
         ``box`` ``(x0, y0, x1, y1)`` the object is cut inside it (:meth:`_boxed`), and
-        a box alone, without positive clicks, is enough. JeansError when nothing is
-        found (never an empty mask).
+        a box alone, without positive clicks, is enough. JeansError "nothing found
+        there" when the mask is smaller than a click's seed disc (a click on plain
+        background gave the clicked pixel alone): never an empty or one-pixel object.
         """
         clicks = ObjectClicks(tuple(positive), tuple(negative), box)  # one object's, checked as a file's are
         positive, negative = clicks.positive, clicks.negative
         working = self.working_mask(positive, negative, clicks.box)
-        if not working.any():
+        if np.count_nonzero(working) < self._smallest:
+            # Only the clicked pixels themselves (a click on plain background): no object,
+            # which the person is told instead of getting jeans on a speck.
             where = "in that box" if clicks.box is not None else "there"
             raise JeansError(f"nothing found {where}: click inside the subject")
         height, width = self.shape

@@ -83,6 +83,8 @@ async function rerender() {
   }
   state.inFlight = true;
   state.again = false;
+  const fromClick = state.clickPending;
+  state.clickPending = false;
   const sequence = ++state.sequence;
   setStatus("Fitting…", true);
   try {
@@ -96,10 +98,21 @@ async function rerender() {
   } catch (error) {
     setStatus("");
     showError(error.message);
+    // A click the server could not use ("nothing found there") is taken back: the
+    // picture, outline and markers stay as they were before it.
+    if (fromClick && error.status === 422 && !state.again) takeBack();
   } finally {
     state.inFlight = false;
     if (state.again) rerender();
   }
+}
+
+function takeBack() {
+  const last = state.history.pop();
+  if (!last) return;
+  state.objects[last.object][last.sign].pop();
+  drawOverlay();
+  updateControls();
 }
 
 // ------------------------------------------------------------------ clicks
@@ -123,6 +136,7 @@ function addClick(event) {
   }
   (negative ? object.negative : object.positive).push(photoPoint(event));
   state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
+  state.clickPending = true;
   drawOverlay();
   updateControls();
   rerender();

@@ -20,6 +20,7 @@ const state = {
   shown: 0, // the newest render shown
   inFlight: false,
   again: false,
+  clickPending: false, // the next render was asked for by a click (taken back if it fails)
   animating: false,
 };
 
