@@ -296,3 +296,44 @@ def test_a_click_on_plain_background_says_so_and_keeps_the_picture(server):
             assert page.locator("#overlay path.outline").count() >= 1  # the automatic outline is still drawn
         finally:
             browser.close()
+
+
+def test_a_keyboard_alone_opens_a_photo(server, tmp_path):
+    """Issue 32's fifth bug: Enter or Space on the drop zone did nothing, and the file
+    input was out of the tab order. Now Tab reaches the zone and the file input, and
+    Enter opens the file chooser; the chosen photo gets its jeans."""
+    problem = _browser_missing()
+    assert not problem, problem
+    from playwright.sync_api import sync_playwright
+
+    path = tmp_path / "pets.png"
+    Image.fromarray(two_objects().image).save(path)
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"], headless=True)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 860})
+            # Listening from the start: Playwright turns file-chooser interception on
+            # asynchronously, and a chooser opened before that is a native one, lost.
+            choosers = []
+            page.on("filechooser", lambda chooser: choosers.append(chooser))
+            page.goto(server + "/")
+            page.wait_for_selector("#garment option", state="attached")
+            focused = []
+            for _ in range(12):  # Tab through the page until the drop zone, then the file input
+                page.keyboard.press("Tab")
+                focused.append(page.evaluate("() => document.activeElement.id"))
+                if focused[-1] == "file":
+                    break
+            assert "drop" in focused and focused[-1] == "file", focused
+            page.keyboard.press("Shift+Tab")  # back onto the drop zone, as a keyboard user would
+            assert page.evaluate("() => document.activeElement.id") == "drop"
+            page.keyboard.press("Enter")
+            _wait_until(page, lambda: choosers, 10, "Enter on the drop zone opened no file chooser")
+            choosers[0].set_files(str(path))
+            page.wait_for_function(
+                "() => document.getElementById('result').complete && document.getElementById('result').naturalWidth > 0",
+                timeout=60_000,
+            )
+            assert "pets.png" in page.inner_text("#status")
+        finally:
+            browser.close()

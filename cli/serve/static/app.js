@@ -35,6 +35,13 @@ async function loadOptions() {
 function wire() {
   const drop = $("drop");
   $("file").addEventListener("change", (e) => upload(e.target.files[0]));
+  // Enter or Space on the drop zone opens the file chooser, as a click on its button does.
+  drop.addEventListener("keydown", (e) => {
+    if (e.target === drop && (e.key === "Enter" || e.key === " ")) {
+      e.preventDefault();
+      $("file").click();
+    }
+  });
   // Drops anywhere on the page (the drop zone's bubble up here): one upload per drop.
   document.addEventListener("dragover", (e) => {
     e.preventDefault();
