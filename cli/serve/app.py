@@ -11,10 +11,8 @@ import os
 import re
 import shutil
 import stat
-import sys
 import tempfile
 import threading
-import traceback
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -28,7 +26,7 @@ from starlette.routing import Route
 from jeanscv.errors import JeansError
 
 from . import engine
-from .guard import BodyRefused, Guard, TooLarge, own_names
+from .guard import UNEXPECTED, BodyRefused, Guard, TooLarge, log_unexpected, own_names
 from .store import Busy, Pool, Stopping, Store, TooSlow
 
 #: Default upload cap: a 60-MP camera RAW file is 60-120 MB.
@@ -160,20 +158,6 @@ def _suffix(name: str) -> str:
 
     suffix = Path(name).suffix.lower()
     return suffix if suffix in SUPPORTED_EXTENSIONS | SVG_EXTENSIONS else ".img"
-
-
-def _log(message: str) -> None:
-    print(f"jeanscv serve: {' '.join(str(message).split())}", file=sys.stderr, flush=True)
-
-
-def log_unexpected(exc: BaseException, where: str, debug: bool) -> None:
-    """One line on the terminal for an error that is not a bad input; the traceback too
-    with ``--debug``. The client gets only the one-line reason."""
-    from ..worker import failure_reason
-
-    _log(f"{where}: {failure_reason(exc)}")
-    if debug:
-        traceback.print_exception(exc, file=sys.stderr)
 
 
 async def _json_object(request: Request) -> dict:
@@ -477,7 +461,7 @@ class _Api:
 
     async def unexpected(self, request: Request, exc: Exception) -> Response:
         # Starlette then raises it on to the Guard, which logs one line (never the client).
-        return _error(500, "unexpected error (the server's terminal says more)")
+        return _error(500, UNEXPECTED)
 
 
 def create_app(config: Config) -> Guard:

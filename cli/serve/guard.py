@@ -204,9 +204,9 @@ class Guard:
             if not started:
                 await _refuse(send, exc.status, exc.reason)
         except Exception as exc:  # noqa: BLE001 - a bug: one line on the terminal, never a traceback to the client
-            _log_unexpected(exc, f"{scope['method']} {scope['path'][:80]}", self.debug)
+            log_unexpected(exc, f"{scope['method']} {scope['path'][:80]}", self.debug)
             if not started:
-                await _refuse(send, 500, "unexpected error (the server's terminal says more)")
+                await _refuse(send, 500, UNEXPECTED)
 
     async def _receive(self, receive):
         """The next body message; BodyRefused when it stalls or the server stops."""
@@ -230,12 +230,20 @@ class Guard:
         return TooLarge.reason(self.max_body)
 
 
-def _log_unexpected(exc: BaseException, where: str, debug: bool) -> None:
+#: What a client is told of an unexpected error (the terminal gets the one line).
+UNEXPECTED = "unexpected error (the server's terminal says more)"
+
+
+def log_unexpected(exc: BaseException, where: str, debug: bool) -> None:
+    """One line on the terminal for an error that is not a bad input (the command line's
+    reason for it); the traceback too with ``--debug``. A client gets only :data:`UNEXPECTED`
+    or the one-line reason."""
     import sys
     import traceback
 
-    detail = " ".join(str(exc).split())[:200]
-    print(f"jeanscv serve: {where}: unexpected error ({type(exc).__name__}: {detail})", file=sys.stderr, flush=True)
+    from jeanscv.run.runner import failure_reason  # only when an error happens
+
+    print(f"jeanscv serve: {where}: {failure_reason(exc)}", file=sys.stderr, flush=True)
     if debug:
         traceback.print_exception(exc, file=sys.stderr)
 
