@@ -117,11 +117,6 @@ class Pool:
     def stopped(self) -> bool:
         return self._stopped
 
-    def waiting(self) -> int:
-        """Requests' jobs waiting for a worker now."""
-        with self._lock:
-            return len(self._waiting)
-
     def retry_after(self) -> int:
         """Seconds a refused client should wait before it asks again (1-30)."""
         with self._lock:
