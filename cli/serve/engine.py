@@ -22,7 +22,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import stat
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -487,14 +486,14 @@ def thumbnail(path: Path, side: int) -> bytes:
     The file is opened without following a symbolic link and must be a regular file;
     JeansError (naming only the file) when it cannot be read or decoded.
     """
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    from jeanscv.io.files import open_regular
+
     try:
-        fd = os.open(path, flags)
+        file = open_regular(path, follow_links=False)
     except OSError as exc:
         raise JeansError(f"cannot read {path.name} ({(exc.strerror or 'error').lower()})") from None
-    with os.fdopen(fd, "rb") as file:
-        info = os.fstat(file.fileno())
-        if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_THUMB_SOURCE:
+    with file:
+        if os.fstat(file.fileno()).st_size > MAX_THUMB_SOURCE:
             raise JeansError(f"cannot read {path.name} (not a picture file of a usable size)")
         data = file.read()
     try:

@@ -26,14 +26,17 @@ class NotRegularFile(OSError):
     """The path is a FIFO, a device or a socket; ``strerror`` says which."""
 
 
-def open_regular(path: str | os.PathLike) -> BinaryIO:
+def open_regular(path: str | os.PathLike, *, follow_links: bool = True) -> BinaryIO:
     """Open ``path`` for binary reading; raise ``OSError`` unless it is a regular file.
 
     A folder raises ``IsADirectoryError``, a FIFO, device or socket :class:`NotRegularFile`
     (``strerror`` e.g. ``is a named pipe, not a regular file``); a missing file
     ``FileNotFoundError`` and a symlink loop ``OSError`` with ``ELOOP``, as ``open`` does.
+    Without ``follow_links``, a symbolic link raises ``OSError`` (``ELOOP``) too.
     """
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
     fd = os.open(Path(path), flags)
     try:
         mode = os.fstat(fd).st_mode
