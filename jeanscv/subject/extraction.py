@@ -101,7 +101,7 @@ def extract_silhouettes(
     found there"), never an empty object. The clicked objects come first, in order; with ``"all"`` the automatic objects
     that they do not cover follow. With a user ``mask``, ``points`` pick the mask's pieces
     instead. Every silhouette's ``details`` holds its ``box`` (x, y, w, h); a clicked
-    one also its ``clicks`` and ``point`` (its first positive click). ``shared``: a
+    one also its ``clicks`` and ``point`` (its first positive click, else its box's centre). ``shared``: a
     :class:`~jeanscv.subject.photo.SharedHypotheses` for auto's hypotheses of this
     photo (cut once for the automatic subject and the click session; the results are
     the same without it).
