@@ -215,7 +215,8 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     multiple=True,
     callback=_parse_points,
     metavar="X,Y",
-    help="A click on something that is not that object (repeatable; with --point or --box).",
+    help="A click on something that is not that object (repeatable; alone: the automatic subject "
+    "minus what it takes away; one input).",
 )
 @click.option(
     "--box",
@@ -364,8 +365,8 @@ def _main(
         raise _usage("--point needs exactly one input image (its pixels are that image's)")
     if values["box"] is not None and not single:
         raise _usage("--box needs exactly one input image (its pixels are that image's)")
-    if values["background_points"] and not values["points"] and values["box"] is None:
-        raise _usage("--background-point needs a --point or a --box on the object too")
+    if values["background_points"] and not single:
+        raise _usage("--background-point needs exactly one input image (its pixels are that image's)")
     if values["clicks"] is not None and not single:
         raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
     options = JeansOptions(**values, device=device, backend=backend)

@@ -129,8 +129,8 @@ def test_auto_and_a_session_cut_the_hypotheses_once_with_the_same_results(monkey
 
 
 def test_session_refuses_clicks_it_cannot_use():
-    with pytest.raises(JeansError, match="a positive click or a box"):
-        session().segment([], [HEAD_CLICK])
+    with pytest.raises(JeansError, match="an object needs a click or a box"):
+        session().segment([], [])
     with pytest.raises(JeansError, match=r"click \(320, 5\) is outside the 320x240 image"):
         session().segment([(320, 5)])
     with pytest.raises(JeansError, match="on top of a positive one"):
@@ -172,8 +172,8 @@ def test_clicks_file_round_trip(tmp_path):
         ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [["a", 1]]}]}', "two numbers"),
         ('{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[1, 2, 3]]}]}', "two numbers"),
         (
-            '{"format": "jeanscv-clicks", "version": 1, "objects": [{"negative": [[1, 2]]}]}',
-            "a positive click or a box",
+            '{"format": "jeanscv-clicks", "version": 2, "objects": [{"negative": []}]}',
+            "an object needs a click or a box",
         ),
         (
             '{"format": "jeanscv-clicks", "version": 1, "objects": [{"positive": [[1, 2]], "negative": [[1.5, 2.5]]}]}',
@@ -299,11 +299,11 @@ def test_a_bad_saved_clicks_file_fails_that_photo_only(tmp_path, run_cli, conten
     assert not (tmp_path / "figure.jeans.png").exists() and (tmp_path / "other.jeans.png").exists()
 
 
-def test_cli_click_options_need_one_input_and_a_positive_click(figure_png, run_cli, tmp_path):
-    result = run_cli(figure_png, "--background-point", "5,5")
-    assert result.exit_code == 2 and "--background-point needs a --point or a --box" in result.stderr
+def test_cli_click_options_need_one_input(figure_png, run_cli, tmp_path):
     other = tmp_path / "other.png"
     other.write_bytes(figure_png.read_bytes())
+    result = run_cli(figure_png, other, "--background-point", "5,5")
+    assert result.exit_code == 2 and "--background-point needs exactly one input image" in result.stderr
     result = run_cli(figure_png, other, "--clicks", tmp_path / "x.json")
     assert result.exit_code == 2 and "--clicks needs exactly one input image" in result.stderr
     result = run_cli(figure_png, "--point", "90.5,130.5", "--background-point", "90.5,130.5", *CLI_FIT)
@@ -392,3 +392,96 @@ def test_a_click_on_plain_background_says_nothing_was_found():
     with pytest.raises(JeansError, match="nothing found there"):
         extract_silhouettes(image, points=[(300.5, 220.5)])  # the grey corner
     assert share(session().segment([DISC_CLICK]).mask, disc) > 0.98  # a click on something still takes it
+
+
+# ------------------------------------------------------------------ negative clicks alone
+
+
+def test_a_negative_click_alone_takes_that_away_from_the_automatic_subject():
+    """The jeans cover the owner and the dog: "automatic, minus this"."""
+    _, body, head, disc = figure()
+    assert np.array_equal(session().segment([], [HEAD_CLICK]).mask, body)
+    assert np.array_equal(session().segment([], [BODY_CLICK]).mask, head)
+    untouched = session().segment([], [(300.5, 220.5)]).mask  # off the subject: auto's own
+    assert share(untouched, body) == 1 and share(untouched, head) == 1 and share(untouched, disc) == 0
+    assert np.count_nonzero(untouched & ~(body | head)) <= 8  # a few pixels of anti-aliased corner
+    with pytest.raises(JeansError, match="nothing is left of the automatic subject"):
+        session().segment([], [HEAD_CLICK, BODY_CLICK])
+
+
+def test_negative_clicks_alone_on_the_command_line_and_in_the_clicks_file(figure_png, run_cli, tmp_path):
+    _, body, _, _ = figure()
+    (found,) = extract_silhouettes(figure()[0], background_points=[HEAD_CLICK])
+    assert np.array_equal(found.mask, body) and "point" not in found.details
+    result = run_cli(figure_png, "--background-point", "160.5,130.5", "-o", tmp_path, "--json", *CLI_FIT)
+    assert result.exit_code == 0, result.stderr
+    report = json.loads((tmp_path / "figure.jeans.json").read_text())
+    assert report["clicks"]["objects"] == [{"positive": [], "negative": [list(HEAD_CLICK)]}]
+    clicks = Clicks((ObjectClicks((), (HEAD_CLICK,)),), (320, 240))
+    assert clicks.to_json()["version"] == 2 and loads_clicks(clicks.dumps()) == clicks
+    old = '{"format": "jeanscv-clicks", "version": 1, "objects": [{"negative": [[160.5, 130.5]]}]}'
+    with pytest.raises(JeansError, match="negative clicks alone need version 2"):
+        loads_clicks(old)
+
+
+# ------------------------------------------------------------------ several objects
+
+
+def test_clicked_objects_do_not_overlap():
+    """A click on the body and, as a second object, one on the head attached to it: each
+    click alone takes both, but a pixel belongs to one object."""
+    _, body, head, _ = figure()
+    assert share(session().segment([HEAD_CLICK]).mask, body) == 1  # alone, the head's click takes the body too
+    first, second = extract_silhouettes(figure()[0], clicks=[{"positive": [BODY_CLICK]}, {"positive": [HEAD_CLICK]}])
+    assert np.array_equal(first.mask, body) and np.array_equal(second.mask, head)
+
+
+def test_disjoint_gives_a_shared_pixel_to_the_nearest_seed_and_drops_cut_off_pieces():
+    from jeanscv.subject.masks import disjoint
+
+    a = np.zeros((6, 10), bool)
+    a[1:5, 0:7] = True
+    b = np.zeros((6, 10), bool)
+    b[1:5, 3:10] = True
+    b[5, 0] = True  # a speck of b's, apart from its seed once the shared pixels are gone
+    left, right = disjoint([a, b], [[(1.5, 2.5)], [(8.5, 2.5)]])
+    expected_left = np.zeros((6, 10), bool)
+    expected_left[1:5, 0:5] = True  # columns 3 and 4 nearer x=1, 5 and 6 nearer x=8
+    expected_right = np.zeros((6, 10), bool)
+    expected_right[1:5, 5:10] = True
+    assert np.array_equal(left, expected_left) and np.array_equal(right, expected_right)
+    untouched = np.zeros((6, 10), bool)
+    untouched[0, 0] = True
+    same = disjoint([untouched, expected_right], [[(0.5, 0.5)], [(8.5, 2.5)]])
+    assert same[0] is untouched and same[1] is expected_right
+
+
+# ------------------------------------------------------------------ size
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / (a | b).sum())
+
+
+@pytest.mark.parametrize("factor", [0.75, 5])
+def test_the_same_photo_at_another_pixel_size_gives_the_same_subject(factor):
+    """Small photos are scaled up to the working sizes and big ones averaged down, so a
+    click (and the automatic subject) takes the same thing at any size: IoU within 0.05
+    (issue 31's bar; what is left is the answer resampled to the photo's pixels)."""
+    image, body, head, disc = figure()
+    size = (round(320 * factor), round(240 * factor))
+    other = cv2.resize(image, size, interpolation=cv2.INTER_CUBIC if factor > 1 else cv2.INTER_AREA)
+    scaled = {
+        name: cv2.resize(part.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST).astype(bool)
+        for name, part in (("body", body), ("head", head), ("disc", disc))
+    }
+    for clicks, parts in (([BODY_CLICK], ("body", "head")), ([DISC_CLICK], ("disc",))):
+        here = session().segment(clicks).mask
+        there = ClickSession(other).segment([(x * factor, y * factor) for x, y in clicks]).mask
+        reference = np.logical_or.reduce([{"body": body, "head": head, "disc": disc}[p] for p in parts])
+        scaled_reference = np.logical_or.reduce([scaled[p] for p in parts])
+        assert _iou(here, reference) > 0.97 and abs(_iou(there, scaled_reference) - _iou(here, reference)) < 0.05
+    automatic = extract_silhouettes(image)[0].mask >= 0.5
+    automatic_there = extract_silhouettes(other)[0].mask >= 0.5
+    both = body | head
+    assert abs(_iou(automatic_there, scaled["body"] | scaled["head"]) - _iou(automatic, both)) < 0.05

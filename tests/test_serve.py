@@ -162,6 +162,30 @@ def test_auto_and_the_click_session_cut_the_hypotheses_once(client, monkeypatch)
     assert clicked.status_code == 200 and len(cuts) == 1
 
 
+def test_a_negative_click_alone_takes_that_away_from_the_automatic_subject(client):
+    """The owner and the dog: "automatic, minus the owner" leaves the dog."""
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    owner, dog = scene().masks
+    answer = client.post(
+        f"/api/photos/{first['photo']}/render", json={"objects": [{"positive": [], "negative": [inside_point(owner)]}]}
+    )
+    assert answer.status_code == 200, answer.text
+    (found,) = answer.json()["objects"]
+    (automatic,) = first["objects"]  # owner and dog, as one subject
+    x0, y0, w, h = found["box"]
+    ax0, ay0, aw, ah = automatic["box"]
+    assert ax0 < _box(owner)[2]  # auto had the owner
+    # The dog as auto had it (auto missed its tail's end), the owner gone.
+    dx0, dy0, dx1, dy1 = _box(dog)
+    expected = (dx0, dy0, min(dx1, ax0 + aw), min(dy1, ay0 + ah))
+    assert max(abs(a - b) for a, b in zip((x0, y0, x0 + w, y0 + h), expected)) <= 8, (found["box"], expected)
+
+
+def _box(mask: np.ndarray) -> tuple[int, int, int, int]:
+    ys, xs = np.nonzero(mask)
+    return int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
+
+
 def test_svg_silhouette_and_png_drawing(client):
     text = b'<svg xmlns="http://www.w3.org/2000/svg" width="512" height="256" viewBox="0 0 512 256">'
     text += b'<rect x="200" y="20" width="100" height="220" fill="#000"/></svg>'

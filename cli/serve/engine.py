@@ -461,14 +461,17 @@ def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
     """The page's clicks (``[{"positive": [[x, y]...], "negative": [...], "box": [x0, y0, x1, y1]}...]``,
-    ``box`` optional), or None for none."""
+    ``box`` optional; negative clicks alone: the automatic subject minus them), or None
+    for none."""
     from jeanscv.subject.clicks import parse_clicks
 
     if data is None or data == []:
         return None
     if not isinstance(data, list):
         raise JeansError('"objects" must be a list of {"positive": [[x, y], ...], "negative": [...]}')
-    objects = [obj for obj in data if isinstance(obj, dict) and (obj.get("positive") or obj.get("box"))]
+    objects = [
+        obj for obj in data if isinstance(obj, dict) and (obj.get("positive") or obj.get("negative") or obj.get("box"))
+    ]
     if not objects:
         return None
     document = {"format": "jeanscv-clicks", "version": CLICKS_VERSION, "objects": objects}

@@ -24,9 +24,11 @@ The clicks file (``NAME.clicks.json``, written by the web page and by
     }
 
 An object may have a ``box`` ``[x0, y0, x1, y1]`` (version 2; a box alone, without
-positive clicks, is enough). A file whose objects have no box is written as version 1,
-which older jeanscv reads; both versions are read. ``image`` records the size the clicks were made on; a file whose size does not match
-the photo it is replayed on is refused (the clicks would land on the wrong things).
+positive clicks, is enough), or negative clicks alone (version 2: the automatic subject
+minus what they take away). A file whose objects all have a positive click and no box is
+written as version 1, which older jeanscv reads; both versions are read. ``image``
+records the size the clicks were made on; a file whose size does not match the photo it
+is replayed on is refused (the clicks would land on the wrong things).
 ``image`` may be omitted by hand-written files: then only the bounds are checked.
 """
 
@@ -44,7 +46,8 @@ from ..errors import JeansError
 
 FORMAT = "jeanscv-clicks"
 #: The version written when an object has a box (version 2 added boxes); files without
-#: boxes are written as version 1, which every jeanscv reads.
+#: boxes (and a positive click in every object) are written as version 1, which every
+#: jeanscv reads.
 VERSION = 2
 READS = (1, 2)
 #: The sidecar a folder's photo keeps its clicks in: ``cat.jpg`` -> ``cat.clicks.json``.
@@ -76,8 +79,8 @@ class ObjectClicks:
         object.__setattr__(self, "negative", tuple(_point(p) for p in self.negative))
         if self.box is not None:
             object.__setattr__(self, "box", _box(self.box))
-        if not self.positive and self.box is None:
-            raise JeansError("an object needs a positive click or a box")
+        if not (self.positive or self.negative or self.box is not None):
+            raise JeansError("an object needs a click or a box")
         if len(self.positive) + len(self.negative) > MAX_CLICKS:
             raise JeansError(f"an object has more than {MAX_CLICKS} clicks")
         taken = {_pixel(p) for p in self.positive}
@@ -86,10 +89,18 @@ class ObjectClicks:
                 raise JeansError(f"negative click ({point[0]:g}, {point[1]:g}) is on top of a positive one")
 
     @property
-    def anchor(self) -> Point:
-        """Where the object is: its first positive click, else its box's centre."""
+    def edits_automatic(self) -> bool:
+        """Negative clicks alone: the automatic subject minus what they take away."""
+        return not self.positive and self.box is None
+
+    @property
+    def anchor(self) -> Point | None:
+        """Where the object is: its first positive click, else its box's centre (None
+        for negative clicks alone: the object is wherever the automatic subject is)."""
         if self.positive:
             return self.positive[0]
+        if self.box is None:
+            return None
         x0, y0, x1, y1 = self.box
         return ((x0 + x1) / 2, (y0 + y1) / 2)
 
@@ -158,8 +169,9 @@ class Clicks:
 
     def to_json(self) -> dict:
         """The clicks file's JSON object."""
-        # Version 1 where no object has a box: older jeanscv reads those files.
-        version = VERSION if any(obj.box is not None for obj in self.objects) else 1
+        # Version 1 where every object has a positive click and no box: older jeanscv
+        # reads those files.
+        version = VERSION if any(obj.box is not None or obj.edits_automatic for obj in self.objects) else 1
         data: dict = {"format": FORMAT, "version": version}
         if self.image_size is not None:
             data["image"] = {"width": int(self.image_size[0]), "height": int(self.image_size[1])}
@@ -244,6 +256,10 @@ def parse_clicks(data) -> Clicks:
         box = obj.get("box")
         if box is not None and version < 2:
             raise JeansError(f'object {index + 1}: "box" needs a version 2 clicks file')
+        if not positive and box is None and version < 2:
+            raise JeansError(
+                f"object {index + 1}: an object needs a positive click (negative clicks alone need version 2)"
+            )
         try:
             parsed.append(ObjectClicks(tuple(positive), tuple(negative), box))
         except JeansError as exc:

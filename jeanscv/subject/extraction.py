@@ -58,8 +58,6 @@ def object_clicks(points, background_points, clicks, box=None) -> list:
 
     objects = []
     if points or background_points or box is not None:
-        if not points and box is None:
-            raise JeansError("a background click needs a positive click on the object too (or a box)")
         objects.append(ObjectClicks(tuple(points or ()), tuple(background_points or ()), box))
     if clicks is not None:
         if isinstance(clicks, Clicks):
@@ -149,13 +147,65 @@ def clicked_silhouettes(session, objects) -> list[Silhouette]:
     in order, segmented by ``session`` (a
     :class:`~jeanscv.subject.interactive.ClickSession` of the photo, which a caller
     that clicks often keeps); ``details`` holds the object's ``clicks``, its first
-    positive click as ``point`` and its ``box``."""
+    positive click as ``point`` and its ``box``.
+
+    The objects are disjoint: an object whose mask holds another's positive clicks is
+    segmented again with them as negative clicks (the other object is not part of it),
+    and a pixel that several masks still take goes to the one with the nearest positive
+    click (:func:`~jeanscv.subject.masks.disjoint`)."""
+    segmentations = [session.segment(obj.positive, obj.negative, obj.box) for obj in objects]
+    if len(segmentations) > 1:
+        segmentations = [
+            _apart(session, obj, segmentation, objects[:index] + objects[index + 1 :])
+            for index, (obj, segmentation) in enumerate(zip(objects, segmentations))
+        ]
+        segmentations = _disjoint(segmentations, objects)
     found = []
-    for obj in objects:
-        silhouette = _framed(session.segment(obj.positive, obj.negative, obj.box), obj.anchor)
+    for obj, segmentation in zip(objects, segmentations):
+        silhouette = _framed(segmentation, obj.anchor)
         silhouette.details["clicks"] = obj.to_json()
         found.append(silhouette)
     return found
+
+
+def _apart(session, obj, segmentation, others):
+    """``obj``'s segmentation again with the other objects' positive clicks that its mask
+    holds as negative clicks (none on its own clicks' pixels), else as it is."""
+    mask = segmentation.mask
+    mine = {(int(x), int(y)) for x, y in obj.positive}
+    theirs = [
+        (x, y) for other in others for x, y in other.positive if mask[int(y), int(x)] and (int(x), int(y)) not in mine
+    ]
+    if not theirs:
+        return segmentation
+    return session.segment(obj.positive, obj.negative + tuple(theirs), obj.box)
+
+
+def _disjoint(segmentations: list, objects) -> list:
+    """Clicked objects' segmentations made disjoint (seeds: each object's positive clicks,
+    else its mask's deepest pixel); a changed one gets its contour again, and one left
+    with nothing is an error naming it."""
+    import dataclasses
+
+    import cv2
+
+    from .masks import disjoint, outer_contour
+
+    def deepest(mask: np.ndarray) -> list[tuple[float, float]]:
+        depth = cv2.distanceTransform(np.pad(mask.view(np.uint8), 1), cv2.DIST_L2, 3)[1:-1, 1:-1]
+        y, x = np.unravel_index(int(np.argmax(depth)), depth.shape)
+        return [(float(x), float(y))]
+
+    masks = [s.mask for s in segmentations]
+    seeds = [list(obj.positive) or deepest(mask) for obj, mask in zip(objects, masks)]
+    result = []
+    for index, (segmentation, mask) in enumerate(zip(segmentations, disjoint(masks, seeds))):
+        if mask is not segmentation.mask:
+            if not mask.any():
+                raise JeansError(f"object {index + 1} lies under another clicked object: click it apart")
+            segmentation = dataclasses.replace(segmentation, mask=mask, contour=outer_contour(mask, (1.0, 1.0)))
+        result.append(segmentation)
+    return result
 
 
 def split_objects(mask: np.ndarray):

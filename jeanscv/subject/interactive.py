@@ -60,6 +60,9 @@ _ANCHOR_REACH = 1.5
 #: the click reaches it for less than ``_CORE_PRICE`` (Lab units summed along the way).
 _CORE_REACH = 2.0
 _CORE_PRICE = 20.0
+#: A geodesic region whose boundary steps cost less than this on average (Lab units over
+#: the noise floor) has no edge around it: a click on plain background.
+_EDGE_CONTRAST = 1.0
 #: Radius of the "probably the object" disc of the click-seeded GrabCut (short side).
 _PROBABLE_RADIUS = 0.3
 #: The click-seeded GrabCut of the first click runs on a copy this long: GrabCut's set-up
@@ -104,12 +107,14 @@ class ClickSession:
         """``shared``: auto's hypotheses of this photo, when :func:`photo.segment` has cut
         them already (or will: they are cut once, by whichever asks first)."""
         rgb, _ = _validate_image(image)
+        self._image = image  # for the automatic subject, which a negative click alone edits
         self.shape = rgb.shape[:2]
         height, width = self.shape
         self.size = shape_for(self.shape, working_size)  # (w, h) of the working copy
         self.rgb = downscale(rgb, self.size)
         scene_rgb = downscale(rgb, shape_for(self.shape, SCENE_SIZE))
-        found = (shared or SharedHypotheses()).of(scene_rgb).found
+        self._shared = shared or SharedHypotheses()
+        found = self._shared.of(scene_rgb).found
         self._hypotheses = {
             name: resize(mask.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
             for name, mask in (found.coarse.items() if found is not None else ())
@@ -149,6 +154,8 @@ class ClickSession:
         if np.count_nonzero(working) < self._smallest:
             # Only the clicked pixels themselves (a click on plain background): no object,
             # which the person is told instead of getting jeans on a speck.
+            if clicks.edits_automatic:
+                raise JeansError("nothing is left of the automatic subject after those clicks")
             where = "in that box" if clicks.box is not None else "there"
             raise JeansError(f"nothing found {where}: click inside the subject")
         height, width = self.shape
@@ -183,6 +190,8 @@ class ClickSession:
         sequence = tuple(("+", p) for p in pos) + tuple(("-", p) for p in neg)
         if clicks.box is not None:
             mask = self._boxed(_box_pixels(clicks.box, self.shape[::-1], self.size), sequence)
+        elif not pos:
+            mask = self._minus(sequence)
         else:
             mask = self._after(sequence)
         mask.flags.writeable = False
@@ -206,7 +215,10 @@ class ClickSession:
         inside = _box_mask(box, self.rgb.shape[:2])
         if clicks:
             previous = self._boxed(box, clicks[:-1])
-            stand_in = [] if any(sign == "+" for sign, _ in clicks) else _largest_piece_point(previous)
+            # The box's object stays, whatever the clicks add: its deepest point stands
+            # for it beside the positive clicks (a click on a missed paw that the
+            # geodesic step does not join to the body used to leave the paw alone).
+            stand_in = _largest_piece_point(previous)
             steps = tuple(("+", p) for p in stand_in) + clicks
             mask = self._step(previous, steps) & inside if previous.any() else previous
             # Local: the box already found the object, so a click changes only what lies
@@ -220,15 +232,46 @@ class ClickSession:
         else:
             labels = np.where(inside, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
             mask = _seeded_grabcut(self.rgb, labels, [], [], self._seed_radius) & inside
+            stand_in = []
         pos = [p for sign, p in clicks if sign == "+"]
         neg = [p for sign, p in clicks if sign == "-"]
-        keep = pos or _largest_piece_point(mask)
+        keep = (pos + [(x, y) for x, y in stand_in if mask[y, x]]) or _largest_piece_point(mask)
         if mask.any() and keep:
             mask = _constrained(self._pixels.refine(_constrained(mask, keep, neg)), keep, neg) & inside
         if len(self._cache) >= _CACHED_SEQUENCES:
             del self._cache[next(iter(self._cache))]
         self._cache[key] = mask
         return mask
+
+    def _minus(self, clicks: tuple) -> np.ndarray:
+        """Negative clicks alone ((sign, working pixel) pairs): the automatic subject
+        (:func:`photo.segment`, its hypotheses shared with this session), minus what each
+        click takes away (:meth:`_step`), its largest piece kept. Remembered."""
+        key = ("minus", clicks)
+        if key in self._cache:
+            return self._cache[key]
+        if not clicks:
+            mask = self._automatic()
+        else:
+            previous = self._minus(clicks[:-1])
+            mask = self._step(previous, clicks) if previous.any() else previous
+            keep = _largest_piece_point(mask)
+            if keep:
+                mask = _constrained(self._pixels.refine(mask), keep, [p for _, p in clicks])
+        if len(self._cache) >= _CACHED_SEQUENCES:
+            del self._cache[next(iter(self._cache))]
+        self._cache[key] = mask
+        return mask
+
+    def _automatic(self) -> np.ndarray:
+        """The automatic subject at working resolution (empty when auto finds none)."""
+        from .photo import segment
+
+        try:
+            found = segment(self._image, "auto", shared=self._shared).mask
+        except JeansError:
+            return np.zeros(self.rgb.shape[:2], bool)
+        return resize(found.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
 
     # ------------------------------------------------------------------ steps
     def _after(self, clicks: tuple) -> np.ndarray:
@@ -242,7 +285,10 @@ class ClickSession:
             mask = self._step(self._after(clicks[:-1]), clicks)
         pos = [p for sign, p in clicks if sign == "+"]
         neg = [p for sign, p in clicks if sign == "-"]
-        mask = _constrained(self._pixels.refine(mask), pos, neg)
+        refined = _constrained(self._pixels.refine(mask), pos, neg)
+        # The refinement's colour models can erase a small object whole (a dark cat on a
+        # dark monitor): then the superpixel mask stands.
+        mask = refined if np.count_nonzero(refined) >= min(self._smallest, np.count_nonzero(mask)) else mask
         if len(self._cache) >= _CACHED_SEQUENCES:
             del self._cache[next(iter(self._cache))]  # the oldest: a session stays bounded
         self._cache[clicks] = mask
@@ -257,6 +303,12 @@ class ClickSession:
         candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
         candidates["click"] = self._click_grabcut(point)
         candidates["geodesic"] = self._geodesic_first(point)
+        # A candidate of a few seed discs is a GrabCut collapsed onto its seed (or a
+        # speck): the click's depth in it is the greatest, so it would win the choice and
+        # the refinement erase it. On the shared photos, leaving them out raised the first
+        # click's IoU from 0.673 to 0.691 (real) and 0.499 to 0.533 (pets), none lower.
+        sizable = {name: m for name, m in candidates.items() if np.count_nonzero(m) >= 3 * self._smallest}
+        candidates = sizable or candidates
         return _constrained(candidates[_agreed(candidates, point, "click")], [point], [])
 
     def _click_grabcut(self, point: tuple[int, int]) -> np.ndarray:
@@ -288,8 +340,15 @@ class ClickSession:
         border = graph.on_border.copy()
         border[node] = False
         near_click = graph.distances(everywhere, [node])
-        near_border = graph.distances(everywhere, np.flatnonzero(border)) if border.any() else np.inf
-        return _constrained((near_click < near_border)[graph.labels], [point], [])
+        near_border = (
+            graph.distances(everywhere, np.flatnonzero(border)) if border.any() else np.full(graph.count, np.inf)
+        )
+        region = near_click < near_border
+        if graph.contrast(region) < _EDGE_CONTRAST:
+            # No edge along its boundary (a click on plain background: the click and the
+            # border reach everything for nothing, and ties split it anyhow): no object.
+            return _constrained(np.zeros(graph.labels.shape, bool), [point], [])
+        return _constrained(region[graph.labels], [point], [])
 
     def _step(self, previous: np.ndarray, clicks: tuple) -> np.ndarray:
         """The mask after one more click, from the mask before it.
@@ -318,7 +377,10 @@ class ClickSession:
             anchors |= graph.on_border & (away > _ANCHOR_REACH * depth)
         anchors &= wrong
         anchors[node] = False
-        core = wrong & (away > _CORE_REACH * depth)
+        # With no positive click nothing stands for the object but the rest of it (the
+        # automatic subject minus a click): guard what lies beyond the click's own part.
+        alone = not any(s == "+" for s, _ in clicks)
+        core = wrong & (away > (1.0 if alone else _CORE_REACH) * depth)
         core[node] = False
         near_click = graph.distances(wrong, [node])
         near_other = graph.distances(wrong, np.flatnonzero(anchors)) if anchors.any() else np.inf
@@ -331,7 +393,8 @@ class ClickSession:
         neg = [p for s, p in clicks if s == "-"]
         if sign == "+" and not previous[y, x]:
             mask = self._with_pieces(previous, mask, (x, y), neg)
-        return _constrained(mask, pos, neg)
+        # Negative clicks alone (the automatic subject minus them): its largest piece stays.
+        return _constrained(mask, pos or _largest_piece_point(mask), neg)
 
     def _with_pieces(self, previous: np.ndarray, grown: np.ndarray, point, neg: list) -> np.ndarray:
         """A positive click outside the mask: of the geodesic growth and the pieces of
@@ -520,10 +583,18 @@ class _ClickGraph:
         weight = np.maximum(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) - _STEP_FLOOR, 0.0) + 1e-3
         # Each node's neighbours and step costs, as Python lists: Dijkstra's loop reads
         # them one at a time, which lists serve several times faster than arrays.
+        self._edges, self._weight = (i, j), weight
         heads, tails, steps = np.concatenate([i, j]), np.concatenate([j, i]), np.concatenate([weight, weight])
         order = np.argsort(heads, kind="stable")
         self._first = np.searchsorted(heads[order], np.arange(self.count + 1)).tolist()
         self._next, self._step = tails[order].tolist(), steps[order].tolist()
+
+    def contrast(self, region: np.ndarray) -> float:
+        """Mean step cost (Lab units over the noise floor) across the boundary of
+        ``region`` ((n,) bool over the superpixels); 0 when it has none."""
+        i, j = self._edges
+        across = region[i] != region[j]
+        return float(self._weight[across].mean()) if across.any() else 0.0
 
     def mean_of(self, mask: np.ndarray) -> np.ndarray:
         return np.bincount(self.labels.ravel(), mask.ravel().astype(np.float64), self.count) / self.area

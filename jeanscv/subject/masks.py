@@ -148,6 +148,40 @@ def largest_component(mask: np.ndarray) -> np.ndarray:
     return labels == 1 + int(np.argmax(np.bincount(labels.ravel(), minlength=count)[1:]))
 
 
+def disjoint(masks: list[np.ndarray], seeds: list[list[tuple[float, float]]]) -> list[np.ndarray]:
+    """``masks`` ``(H, W) bool`` made disjoint: a pixel that several claim goes to the one
+    with the nearest seed (``(x, y)`` pixels, each mask's own; ties: the earlier mask),
+    and each keeps only its pieces (8-connected) that hold one of its seeds. Masks that
+    claim no pixel in common come back as they are (the same arrays)."""
+    claims = np.zeros(masks[0].shape, np.uint8) if masks else None
+    for mask in masks:
+        claims += mask
+    if claims is None or not (claims > 1).any():
+        return list(masks)
+    ys, xs = np.nonzero(claims > 1)
+    nearest = np.full(len(ys), np.inf)
+    owner = np.full(len(ys), -1)
+    for index, (mask, points) in enumerate(zip(masks, seeds)):
+        distance = np.full(len(ys), np.inf)
+        for x, y in points:  # pixel centres against the seed's own pixel's centre
+            distance = np.minimum(distance, np.hypot(xs - int(x), ys - int(y)))
+        distance[~mask[ys, xs]] = np.inf
+        better = distance < nearest
+        owner[better], nearest[better] = index, distance[better]
+    result = []
+    for index, (mask, points) in enumerate(zip(masks, seeds)):
+        lost = owner != index
+        if not lost.any() or not mask[ys, xs].any():
+            result.append(mask)
+            continue
+        mine = mask.copy()
+        mine[ys[lost], xs[lost]] = False
+        _, labels = cv2.connectedComponents(mine.view(np.uint8), connectivity=8)
+        held = {int(labels[int(y), int(x)]) for x, y in points} - {0}
+        result.append(np.isin(labels, list(held)) & mine if held else np.zeros_like(mine))
+    return result
+
+
 def outer_contour(mask: np.ndarray, scale_xy: tuple[float, float]) -> np.ndarray:
     """Outer boundary of the largest component of a bool mask as (N, 2) (x, y) float64.
 

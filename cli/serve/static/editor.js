@@ -2,7 +2,7 @@
 import { updateMemeLink } from "./captions.js";
 import { drawOverlay } from "./drawing.js";
 import { post } from "./server.js";
-import { $, setStatus, showError, state } from "./state.js";
+import { $, hasClicks, setStatus, showError, state } from "./state.js";
 
 function renderOptions() {
   return { style: $("style").value, garment: $("garment").value, posture: $("posture").value };
@@ -88,7 +88,7 @@ async function rerender() {
   const sequence = ++state.sequence;
   setStatus("Fitting…", true);
   try {
-    const objects = state.objects.filter((o) => o.positive.length > 0);
+    const objects = state.objects.filter(hasClicks);
     const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
     if (sequence > state.shown) {
       state.shown = sequence;
@@ -130,10 +130,7 @@ function addClick(event) {
   const negative = state.negative || event.shiftKey || event.altKey || event.ctrlKey || event.metaKey || event.button === 2;
   if (!state.objects[state.current]) state.objects[state.current] = { positive: [], negative: [] };
   const object = state.objects[state.current];
-  if (negative && object.positive.length === 0) {
-    showError("Add a positive click on the object first, then remove what is not part of it.");
-    return;
-  }
+  // A negative click first means "the automatic subject, minus this" (the server does it).
   (negative ? object.negative : object.positive).push(photoPoint(event));
   state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
   state.clickPending = true;
@@ -166,7 +163,7 @@ function reset() {
 
 function newObject() {
   const last = state.objects[state.objects.length - 1];
-  if (last && last.positive.length === 0) {
+  if (last && !hasClicks(last)) {
     state.current = state.objects.length - 1;
   } else {
     state.objects.push({ positive: [], negative: [] });
@@ -188,8 +185,8 @@ function updateControls() {
   for (const id of ["mode-add", "mode-remove", "new-object", "undo", "reset"]) $(id).disabled = !photo;
   $("undo").disabled = !photo || state.history.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
-  $("new-object").disabled = !photo || !state.objects.some((o) => o.positive.length > 0);
-  $("save").disabled = !state.objects.some((o) => o.positive.length > 0);
+  $("new-object").disabled = !photo || !state.objects.some(hasClicks);
+  $("save").disabled = !state.objects.some(hasClicks);
   const list = $("objects");
   list.replaceChildren();
   state.objects.forEach((object, index) => {

@@ -1,7 +1,7 @@
 // Folder mode (jeanscv serve FOLDER): the gallery, opening a photo, saving its clicks.
 import { start } from "./editor.js";
 import { answerOf, post } from "./server.js";
-import { $, setStatus, showError, state } from "./state.js";
+import { $, hasClicks, setStatus, showError, state } from "./state.js";
 
 async function loadGallery() {
   const answer = await answerOf(await fetch("/api/folder"));
@@ -73,7 +73,7 @@ async function saveToFolder() {
   if (state.item === null) return;
   setStatus("Saving the clicks and the new output…", true);
   try {
-    const objects = state.objects.filter((o) => o.positive.length > 0);
+    const objects = state.objects.filter(hasClicks);
     await post(`/api/folder/${state.item}/clicks`, { photo: state.photo, objects });
     setStatus(`Saved: ${state.name}'s clicks and its jeans are in the folder; 'jeanscv FOLDER' uses them.`);
     const tile = document.querySelector(`.tile[data-item="${state.item}"]`);

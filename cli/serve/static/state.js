@@ -24,6 +24,10 @@ const state = {
   animating: false,
 };
 
+// An object the server can use: a positive click, or negative clicks alone (the
+// automatic subject minus them).
+const hasClicks = (object) => object.positive.length > 0 || object.negative.length > 0;
+
 function setStatus(text, busy = false) {
   $("status").textContent = text;
   $("status").classList.toggle("busy", busy);
@@ -34,4 +38,4 @@ function showError(text) {
   $("error").hidden = !text;
 }
 
-export { $, SVG_NS, setStatus, showError, state };
+export { $, SVG_NS, hasClicks, setStatus, showError, state };
