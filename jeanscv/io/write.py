@@ -7,14 +7,16 @@ the target in one step. Any failure removes the temporary file.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import re
 import secrets
 import stat
 import threading
-from collections.abc import Container
+from collections.abc import Container, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from PIL import Image
@@ -48,12 +50,22 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     that its writer is alive. A replaced file keeps its permission bits. Raises
     ``JeansError`` when the destination cannot be written.
     """
+    with atomic_file(path) as f:
+        f.write(data)
+
+
+@contextlib.contextmanager
+def atomic_file(path: str | Path) -> Iterator[BinaryIO]:
+    """A binary file, open for writing (and seeking), that becomes ``path`` when the
+    block ends without an exception; on any exception it is removed and ``path`` is
+    untouched. For outputs written piece by piece (a clip's frames, as they are
+    encoded); the guarantees are those of :func:`atomic_write_bytes`."""
     path = Path(path)
     folder = path.parent
     tmp, fd = _create_temporary(path)
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
+        with os.fdopen(fd, "w+b") as f:
+            yield f
             f.flush()
             os.fsync(f.fileno())
             try:
