@@ -2,6 +2,7 @@
 
     python -m bench.clips [--frames 300] [--width 1280] [--only moving,still,...] [--strip PNG]
     python -m bench.clips --memory        peak memory, 300 frames against 1200 (smaller frames)
+    python -m bench.clips --look CLIP     CLIP.strip.png: 8 of its frames, to look at
 
 Each case is a real pet cut out of ``../shared/pet_photos`` by its mask (a procedural
 animal when that folder is absent) pasted on a real photo of ``../shared/real_photos``,
@@ -170,6 +171,18 @@ def _write_strip(path: Path, images: list[np.ndarray], height: int = 180) -> Non
     print(f"wrote {path}")
 
 
+def look(path: Path, count: int = 8) -> Path:
+    """A strip of ``count`` evenly spaced frames of the clip ``path`` (``PATH.strip.png``)."""
+    from jeanscv.io.clip import ClipReader
+
+    with ClipReader(path) as reader:
+        frames = [frame.pixels for frame in reader.frames()]
+    picked = [frames[round(i * (len(frames) - 1) / max(count - 1, 1))] for i in range(min(count, len(frames)))]
+    out = path.with_name(path.name + ".strip.png")
+    _write_strip(out, picked)
+    return out
+
+
 def memory(frames: int, width: int, height: int) -> int:
     """Peak RSS (bytes) of a fresh process running the moving case for ``frames`` frames."""
     code = (
@@ -188,11 +201,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--only", default=",".join(CASES))
     parser.add_argument("--strip", type=Path)
     parser.add_argument("--memory", action="store_true")
+    parser.add_argument("--look", type=Path, metavar="CLIP", help="only write CLIP.strip.png: 8 of its frames")
     parser.add_argument(
         "--auto", action="store_true", help="find the pet automatically on frame 0 (default: a click on it)"
     )
     args = parser.parse_args(argv)
     height = round(args.width * 9 / 16)
+    if args.look:
+        look(args.look)
+        return
     if args.memory:
         short, long = memory(300, 640, 360), memory(1200, 640, 360)
         print(

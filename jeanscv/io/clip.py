@@ -26,14 +26,7 @@ import numpy as np
 
 from jeanscv.errors import JeansError
 
-#: Extensions that are always clips (a GIF, even of one frame, is written back as a GIF).
-CLIP_EXTENSIONS: frozenset[str] = frozenset({".gif", ".mp4", ".m4v", ".mov", ".webm", ".mkv"})
-#: Extensions that are clips when the file holds several frames (animated PNG and WebP).
-MAYBE_ANIMATED_EXTENSIONS: frozenset[str] = frozenset({".png", ".apng", ".webp"})
-#: Formats a clip can be written in (``png`` is an animated PNG).
-CLIP_FORMATS = ("gif", "mp4", "webp", "png")
-#: The format a clip is written in by default, from its extension: videos become MP4.
-_DEFAULT_FORMAT = {".gif": "gif", ".webp": "webp", ".png": "png", ".apng": "png"}
+from .clip_names import CLIP_EXTENSIONS, CLIP_FORMATS, MAYBE_ANIMATED_EXTENSIONS, clip_format, is_clip_path
 
 
 @dataclass(frozen=True)
@@ -76,11 +69,6 @@ class ClipInfo:
     extra: dict = field(default_factory=dict)
 
 
-def is_clip_path(path: str | os.PathLike) -> bool:
-    """Whether ``path`` names a clip by its extension alone (``.gif``, videos)."""
-    return Path(path).suffix.lower() in CLIP_EXTENSIONS
-
-
 def is_clip(path: str | os.PathLike) -> bool:
     """Whether ``path`` is a clip: a clip extension, or an animated PNG/WebP (several
     frames; only the header is read). An unreadable file is not (the still decoder
@@ -99,14 +87,6 @@ def is_clip(path: str | os.PathLike) -> bool:
             return bool(getattr(image, "is_animated", False))
     except Exception:  # noqa: BLE001 - the still decoder gives the one-line reason
         return False
-
-
-def clip_format(path: str | os.PathLike, fmt: str | None = None) -> str:
-    """The format a clip from ``path`` is written in: ``fmt`` when it is a clip format,
-    else the input's own (GIF, WebP, PNG), MP4 for videos."""
-    if fmt and fmt.lower() in CLIP_FORMATS:
-        return fmt.lower()
-    return _DEFAULT_FORMAT.get(Path(path).suffix.lower(), "mp4")
 
 
 def _rotated(pixels: np.ndarray, rotation: int) -> np.ndarray:
@@ -164,6 +144,8 @@ class ClipReader:
 
         try:
             container = av.open(self._file, "r")
+        except av.EOFError:
+            raise JeansError("the clip has no frames (the file ends before the first)") from None
         except av.FFmpegError as exc:
             raise JeansError(f"not a video or animation this build can read ({_reason(exc)})") from None
         self._container = container
@@ -427,6 +409,8 @@ class ClipWriter:
             frame.duration = max(1, int(round(duration / self._time_base)))
         try:
             for packet in self._stream.encode(frame):
+                if not packet.duration and frame.duration and self.fmt == "gif":
+                    packet.duration = frame.duration  # the GIF muxer's delay of the last frame
                 self._container.mux(packet)
         except av.FFmpegError as exc:
             raise JeansError(f"cannot encode the clip ({_reason(exc)})") from None
@@ -515,6 +499,21 @@ def write_clip(
     return count
 
 
+def clip_bytes(frames, fmt: str, fps: float = 25.0) -> bytes:
+    """``frames`` (arrays ``1/fps`` apart) encoded as a clip ``fmt``, in memory (a photo
+    written as a one-frame GIF or MP4)."""
+    import io
+
+    buffer = io.BytesIO()
+    writer = ClipWriter(buffer, fmt, fps=fps)
+    try:
+        for frame in iter_frames(frames, fps):
+            writer.write(frame.pixels, frame.time, frame.duration)
+    finally:
+        writer.close()
+    return buffer.getvalue()
+
+
 __all__ = [
     "CLIP_EXTENSIONS",
     "CLIP_FORMATS",
@@ -523,6 +522,7 @@ __all__ = [
     "ClipLimits",
     "ClipReader",
     "ClipWriter",
+    "clip_bytes",
     "clip_format",
     "is_clip",
     "is_clip_path",

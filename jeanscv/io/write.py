@@ -322,13 +322,20 @@ def output_extension(input_path: str | os.PathLike, fmt: str | None = None) -> s
     Decided from the name alone, so that a resumed run finds the outputs of the
     previous one without decoding anything: SVG -> ``.png`` (the paper figure),
     RAW -> ``.jpg``, JPEG/PNG/WebP/TIFF keep theirs, other formats -> ``.png``;
-    ``fmt`` (``png``/``jpg``/``webp``) overrides all.
+    clips: GIF -> ``.gif``, videos -> ``.mp4``. ``fmt`` (``png``/``jpg``/``webp``/``gif``/
+    ``mp4``) overrides all, except that a clip named as one is never a ``jpg`` (it keeps its
+    own format; ``png`` is an animated PNG); a still with ``gif`` or ``mp4`` becomes a
+    one-frame clip.
     """
+    from .clip_names import CLIP_EXTENSIONS, clip_format
+
+    suffix = Path(input_path).suffix.lower()
+    if suffix in CLIP_EXTENSIONS:
+        return "." + clip_format(input_path, fmt)
     if fmt:
         return "." + fmt.lower().lstrip(".")
     from .image import RAW_EXTENSIONS
 
-    suffix = Path(input_path).suffix.lower()
     if suffix in RAW_EXTENSIONS:
         return ".jpg"
     return _KEEP_EXTENSION.get(suffix, ".png")

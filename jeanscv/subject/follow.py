@@ -6,18 +6,22 @@ The first frame's masks come from the still-photo segmentation (automatic or cli
 
 1. a scene cut (the frames' colour histograms differ by more than :data:`CUT_DISTANCE`)
    is reported, so the caller finds the subject afresh;
-2. OpenCV's DIS optical flow, from the new frame back to the previous one, warps each
-   mask forward, and a similarity transform fitted to the flow inside the mask gives the
-   object's motion (which carries its garment);
-3. in a band around the warped mask's edge, each pixel is re-decided from the warped mask
+2. each object's motion is measured: its whole-pixel shift by matching its previous
+   pixels (masked template matching), then a similarity from its corners tracked by
+   pyramidal Lucas-Kanade (forward and back); the mask moves by it as a whole, so the
+   errors of a dense flow (a trail of uncovered background, a small object's motion
+   smoothed into the background's) cannot grow or stall it;
+3. in a band around the moved mask's edge, each pixel is re-decided from the moved mask
    and the object's colour model (histograms of the object and of its surroundings,
    learnt on the first frame and updated as it goes), so the edge stays on the subject
-   instead of drifting with the flow's errors;
-4. a mask that shrinks below :data:`LOST_FRACTION` of its size when it was found is lost
-   (the object left the frame or was covered).
+   and takes up what moved on its own (a leg, the tail);
+4. a mask that shrinks below :data:`LOST_FRACTION` of its size when it was found, or
+   whose pixels mostly have its surroundings' colours, is lost (the object left the frame
+   or went behind something).
 
 Several objects are followed each on its own; a pixel two objects claim goes to the
-first. Masks are ``(H, W)`` bool at the frame's full resolution.
+first. Masks are ``(H, W)`` bool at the frame's full resolution; motions are 2x3 maps
+between pixel-centre coordinates (x right, y down, centres at +0.5).
 """
 
 from __future__ import annotations
@@ -27,23 +31,28 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-#: Longest side (pixels) of the copy the flow and the re-segmentation run on.
+#: Longest side (pixels) of the copy the tracking and the re-segmentation run on.
 WORK_SIDE = 640
 #: Bhattacharyya distance between consecutive frames' colour histograms above which the
 #: scene is taken to have cut.
 CUT_DISTANCE = 0.5
 #: Below this fraction of its area when it was found, an object is lost.
 LOST_FRACTION = 0.15
+#: Below this share of its pixels in the object's colours (rather than its surroundings'),
+#: a followed mask is background: the object is lost.
+UNLIKE = 0.5
 #: Share of the colour model renewed from each frame's mask.
 MODEL_RATE = 0.1
 #: How much the warped mask counts against the colour model in the edge band (0..1).
 PRIOR_WEIGHT = 0.5
-#: Margin of the flow's box around the objects, as a fraction of the box's longer side.
+#: Margin of the search box around an object, as a fraction of the box's longer side.
 ROI_MARGIN = 0.3
+#: ... and at least this many pixels: room for a small object's large moves.
+MIN_MARGIN = 48
 #: Half width of the edge band, as a fraction of the object's size (square root of its area).
 BAND = 0.06
-#: The motion is measured this far inside the object (fraction of its size).
-EDGE_DEPTH = 0.08
+#: Most corners tracked per object.
+_CORNERS = 300
 #: Quantisation of the colour model: bits kept per RGB channel.
 _BITS = 4
 
@@ -95,9 +104,6 @@ class Follower:
     def __init__(self, work_side: int = WORK_SIDE) -> None:
         self.work_side = work_side
         self.objects: list[Followed] = []
-        # MEDIUM: the FAST preset's coarser patches let the garment drift 3x as far from
-        # the subject over 40 frames (bench.clips); on the objects' box only, it costs little.
-        self._flow = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
         self._gray: np.ndarray | None = None
         self._scene: np.ndarray | None = None
         self._size: tuple[int, int] = (0, 0)  # full (width, height)
@@ -110,10 +116,6 @@ class Follower:
             scale = min(1.0, self.work_side / max(width, height))
             self._size = (width, height)
             self._work = (max(1, round(width * scale)), max(1, round(height * scale)))
-            grid_x, grid_y = np.meshgrid(
-                np.arange(self._work[0], dtype=np.float32), np.arange(self._work[1], dtype=np.float32)
-            )
-            self._grid = (grid_x, grid_y)
         rgb = np.ascontiguousarray(pixels[..., :3])
         if self._work == self._size:
             return rgb
@@ -151,52 +153,88 @@ class Follower:
         if cv2.compareHist(self._scene, scene, cv2.HISTCMP_BHATTACHARYYA) > CUT_DISTANCE:
             self._gray, self._scene = gray, scene
             return FollowStep(True, [None] * len(self.objects), [None] * len(self.objects))
-        flow = self._backward_flow(gray)
-        map_x = self._grid[0] + flow[..., 0]
-        map_y = self._grid[1] + flow[..., 1]
         index = _colour_index(small)
         taken = np.zeros(gray.shape, bool)
         masks, motions = [], []
         for obj in self.objects:
-            mask, motion = self._follow(obj, flow, map_x, map_y, index, taken)
+            mask, motion = None, None
+            if not obj.lost:
+                mask, motion = self._follow(obj, gray, index, taken)
             masks.append(mask)
             motions.append(motion)
         self._gray, self._scene = gray, scene
         return FollowStep(False, masks, motions)
 
-    def _backward_flow(self, gray: np.ndarray) -> np.ndarray:
-        """Where each pixel of this frame was in the previous one (``(h, w, 2)``), computed
-        only around the objects (a margin of their size: how far they move in a frame);
-        elsewhere zero, where no object can be."""
-        flow = np.zeros((*gray.shape, 2), np.float32)
-        boxes = [_box(obj.soft > 0.5) for obj in self.objects if not obj.lost]
-        boxes = [box for box in boxes if box is not None]
-        if not boxes:
-            return flow
-        x0, y0 = min(b[0] for b in boxes), min(b[1] for b in boxes)
-        x1, y1 = max(b[2] for b in boxes), max(b[3] for b in boxes)
-        margin = int(ROI_MARGIN * max(x1 - x0, y1 - y0)) + 8
+    def _motion(self, obj: Followed, gray: np.ndarray) -> np.ndarray | None:
+        """The object's motion from the previous frame to this one: a 2x3 affine map
+        between pixel-centre coordinates of the working copy, None when it cannot be
+        measured. Its whole-pixel shift is found by matching its previous pixels (masked
+        template matching over its box and a margin), then refined to an affine map by
+        ECC image alignment over its pixels alone (dense optical flow, on a small object
+        over a busy background, smoothed its motion away into the background's)."""
+        inside = obj.soft > 0.5
+        box = _box(inside)
+        if box is None:
+            return None
+        bx0, by0, bx1, by1 = box
+        margin = max(int(ROI_MARGIN * max(bx1 - bx0, by1 - by0)), MIN_MARGIN)
         height, width = gray.shape
-        x0, y0, x1, y1 = max(x0 - margin, 0), max(y0 - margin, 0), min(x1 + margin, width), min(y1 + margin, height)
-        here, before = np.ascontiguousarray(gray[y0:y1, x0:x1]), np.ascontiguousarray(self._gray[y0:y1, x0:x1])
-        flow[y0:y1, x0:x1] = self._flow.calc(here, before, None)
-        return flow
+        x0, y0 = max(bx0 - margin, 0), max(by0 - margin, 0)
+        x1, y1 = min(bx1 + margin, width), min(by1 + margin, height)
+        here = np.ascontiguousarray(gray[y0:y1, x0:x1])
+        template = np.ascontiguousarray(self._gray[by0:by1, bx0:bx1])
+        weight = np.ascontiguousarray(inside[by0:by1, bx0:bx1].astype(np.uint8))
+        found = cv2.matchTemplate(here, template, cv2.TM_SQDIFF, mask=weight)
+        _, _, (mx, my), _ = cv2.minMaxLoc(np.nan_to_num(found, nan=np.inf, posinf=np.inf))
+        dx, dy = mx - (bx0 - x0), my - (by0 - y0)
+        return self._tracked(obj, inside, gray, (dx, dy))
 
-    def _follow(self, obj: Followed, flow, map_x, map_y, index, taken) -> tuple[np.ndarray | None, np.ndarray | None]:
-        if obj.lost:
-            return None, None
-        dense = cv2.remap(obj.soft, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        inside = dense > 0.5
-        if np.count_nonzero(inside) < max(4.0, LOST_FRACTION * obj.found_area):
+    def _tracked(self, obj: Followed, inside: np.ndarray, gray: np.ndarray, shift: tuple[int, int]) -> np.ndarray:
+        """The similarity that moves the object's corners (features inside it, off its edge)
+        from the previous frame to where pyramidal Lucas-Kanade finds them in this one,
+        starting from ``shift``, keeping those that track back to where they started; the
+        whole-pixel ``shift`` alone when too few track."""
+        dx, dy = shift
+        shifted = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+        inner = cv2.erode(inside.view(np.uint8), np.ones((5, 5), np.uint8))
+        corners = cv2.goodFeaturesToTrack(self._gray, _CORNERS, 0.01, 3, mask=inner)
+        if corners is None or len(corners) < 6:
+            return shifted
+        start = corners.reshape(-1, 1, 2).astype(np.float32)
+        guess = start + np.float32([dx, dy])
+        flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+        moved, found, _ = cv2.calcOpticalFlowPyrLK(
+            self._gray, gray, start, guess.copy(), winSize=(15, 15), maxLevel=3, flags=flags
+        )
+        back, found_back, _ = cv2.calcOpticalFlowPyrLK(
+            gray, self._gray, moved, start.copy(), winSize=(15, 15), maxLevel=3, flags=flags
+        )
+        good = (
+            (found.ravel() == 1)
+            & (found_back.ravel() == 1)
+            & (np.linalg.norm((back - start).reshape(-1, 2), axis=1) < 1.0)
+        )
+        if np.count_nonzero(good) < 6:
+            return shifted
+        matrix, _ = cv2.estimateAffinePartial2D(start[good], moved[good], method=cv2.RANSAC, ransacReprojThreshold=1.5)
+        if matrix is None:
+            return shifted
+        # OpenCV's pixel centres are at whole numbers, jeanscv's at +0.5: the same map between them.
+        to_cv = np.array([[1, 0, -0.5], [0, 1, -0.5], [0, 0, 1]])
+        from_cv = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1]])
+        return (from_cv @ np.vstack([matrix, [0, 0, 1]]) @ to_cv)[:2]
+
+    def _follow(self, obj: Followed, gray, index, taken) -> tuple[np.ndarray | None, np.ndarray | None]:
+        motion = self._motion(obj, gray)
+        if motion is None or not np.isfinite(motion).all():
             obj.lost = True
             return None, None
-        motion = _similarity(flow, inside)
-        # The mask moved as a whole: the flow's errors (a trail of background that the
-        # subject uncovers, smoothed into its motion) cannot grow it.
-        rigid = dense if motion is None else _warp(obj.soft, motion, self._work)
-        refined = self._refine(obj, rigid, dense, index) & ~taken
+        # The mask moves as a whole; the edge band is then re-decided by colour, which
+        # takes up what moved on its own (a leg, the tail).
+        rigid = _warp(obj.soft, motion, self._work)
+        refined = self._refine(obj, rigid, index) & ~taken
         area = float(np.count_nonzero(refined))
-        if area < max(4.0, LOST_FRACTION * obj.found_area):
+        if area < max(4.0, LOST_FRACTION * obj.found_area) or self._unlike(obj, refined, index):
             obj.lost = True
             return None, None
         taken |= refined
@@ -207,8 +245,17 @@ class Follower:
         obj.soft = cv2.GaussianBlur(refined.astype(np.float32), (3, 3), 0.7)
         return self._full(obj.soft), self._to_full(motion)
 
-    def _refine(self, obj: Followed, rigid: np.ndarray, dense: np.ndarray, index) -> np.ndarray:
-        """The moved mask with its edge band re-decided by the flow and the colour model:
+    @staticmethod
+    def _unlike(obj: Followed, mask: np.ndarray, index: np.ndarray) -> bool:
+        """Whether most of ``mask`` has the colours of the object's surroundings rather
+        than its own: what is left where an object went out of the frame or behind
+        something is background."""
+        colours = index[mask]
+        fg, bg = obj.foreground[colours], obj.background[colours]
+        return float(np.mean(fg >= bg)) < UNLIKE
+
+    def _refine(self, obj: Followed, rigid: np.ndarray, index) -> np.ndarray:
+        """The moved mask with its edge band re-decided by the colour model:
         outside the band around the rigidly moved mask nothing is the object, inside it all is."""
         inside = rigid > 0.5
         area = max(float(np.count_nonzero(inside)), 1.0)
@@ -220,7 +267,7 @@ class Follower:
         fg, bg = obj.foreground[colours], obj.background[colours]
         likely = (fg + 1e-4) / (fg + bg + 2e-4)
         score = inside.astype(np.float32)
-        score[band] = PRIOR_WEIGHT * 0.5 * (rigid[band] + dense[band]) + (1 - PRIOR_WEIGHT) * likely
+        score[band] = PRIOR_WEIGHT * rigid[band] + (1 - PRIOR_WEIGHT) * likely
         score = cv2.GaussianBlur(score, (5, 5), 1.0)  # neighbours agree: no speckle on the edge
         refined = score > 0.5
         refined = cv2.morphologyEx(refined.view(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
@@ -248,26 +295,6 @@ def _box(mask: np.ndarray) -> tuple[int, int, int, int] | None:
     if rows.size == 0:
         return None
     return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
-
-
-def _similarity(flow: np.ndarray, inside: np.ndarray, samples: int = 600) -> np.ndarray | None:
-    """The similarity (2x3) from previous-frame to this-frame pixels that best fits the
-    flow inside the object, away from its edge (where the flow blurs the object's motion
-    with the background's); None when too few pixels."""
-    depth = max(1, int(EDGE_DEPTH * np.sqrt(np.count_nonzero(inside))))
-    core = cv2.erode(inside.view(np.uint8), np.ones((2 * depth + 1,) * 2, np.uint8)).astype(bool)
-    if np.count_nonzero(core) >= 50:
-        inside = core
-    ys, xs = np.nonzero(inside)
-    if len(xs) < 6:
-        return None
-    if len(xs) > samples:
-        pick = np.linspace(0, len(xs) - 1, samples).astype(np.int64)
-        xs, ys = xs[pick], ys[pick]
-    here = np.stack([xs, ys], axis=1).astype(np.float32) + 0.5
-    before = here + flow[ys, xs]
-    motion, _ = cv2.estimateAffinePartial2D(before, here, method=cv2.LMEDS)
-    return motion
 
 
 def _warp(soft: np.ndarray, motion: np.ndarray, size: tuple[int, int]) -> np.ndarray:
