@@ -3,6 +3,7 @@
     python -m bench.clips [--frames 300] [--width 1280] [--only moving,still,...] [--strip PNG]
     python -m bench.clips --memory        peak memory, 300 frames against 1200 (smaller frames)
     python -m bench.clips --look CLIP     CLIP.strip.png: 8 of its frames, to look at
+    python -m bench.clips --docs docs/clips   docs/clips.md's example clips and strip
 
 Each case is a real pet cut out of ``../shared/pet_photos`` by its mask (a procedural
 animal when that folder is absent) pasted on a real photo of ``../shared/real_photos``,
@@ -183,6 +184,39 @@ def look(path: Path, count: int = 8) -> Path:
     return out
 
 
+def docs_examples(folder: Path) -> None:
+    """The examples of docs/clips.md: a textured animal (testkit, no photo of the shared
+    set) walking, turning and growing over grass, as ``walk.gif`` and ``walk.mp4``, run
+    through the command as a user would (automatic subject on the first frame), and
+    ``walk.strip.jpg``: input frames above, output frames below."""
+    from click.testing import CliRunner
+
+    from jeanscv.io.clip import write_clip
+    from jeanscv_cli.main import cli
+
+    folder.mkdir(parents=True, exist_ok=True)
+    sprite = sc.texture_sprite(150, seed=7, name="gravel", tint=(1.0, 0.62, 0.32))  # a brown, furry animal
+    ground = cv2.GaussianBlur(sc.background(320, 200, seed=4, name="grass", tint=(0.55, 0.85, 0.45)), (0, 0), 2.0)
+    motion = sc.Motion((95.0, 105.0), (130.0, 10.0), 8.0, 0.12, frames=24)
+    frames = [pixels for pixels, _, _ in sc.clip(sprite, ground, motion)]
+    write_clip(folder / "walk.gif", frames, "gif", fps=12.0)
+    write_clip(folder / "walk.mp4", frames, "mp4", fps=12.0)
+    for name in ("walk.gif", "walk.mp4"):
+        result = CliRunner().invoke(cli, [str(folder / name), "--overwrite", "-q"])
+        assert result.exit_code == 0, result.output
+    (folder / "walk.mp4").unlink()  # the GIF shows the input; the MP4 output stays
+    from jeanscv.io.clip import ClipReader
+
+    with ClipReader(folder / "walk.jeans.gif") as reader:
+        out = [frame.pixels for frame in reader.frames()]
+    picked = [0, 6, 12, 18, 23]
+    strip = np.vstack([np.hstack([frames[k] for k in picked]), np.hstack([out[k] for k in picked])])
+    cv2.imwrite(str(folder / "walk.strip.jpg"), cv2.cvtColor(strip, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    (folder / "walk.gif").unlink()  # the strip shows the input
+    for path in sorted(folder.iterdir()):
+        print(f"{path}: {path.stat().st_size / 1024:.0f} KiB")
+
+
 def memory(frames: int, width: int, height: int) -> int:
     """Peak RSS (bytes) of a fresh process running the moving case for ``frames`` frames."""
     code = (
@@ -201,6 +235,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--only", default=",".join(CASES))
     parser.add_argument("--strip", type=Path)
     parser.add_argument("--memory", action="store_true")
+    parser.add_argument("--docs", type=Path, metavar="FOLDER", help="only write docs/clips.md's examples there")
     parser.add_argument("--look", type=Path, metavar="CLIP", help="only write CLIP.strip.png: 8 of its frames")
     parser.add_argument(
         "--auto", action="store_true", help="find the pet automatically on frame 0 (default: a click on it)"
@@ -209,6 +244,9 @@ def main(argv: list[str] | None = None) -> None:
     height = round(args.width * 9 / 16)
     if args.look:
         look(args.look)
+        return
+    if args.docs:
+        docs_examples(args.docs)
         return
     if args.memory:
         short, long = memory(300, 640, 360), memory(1200, 640, 360)

@@ -84,11 +84,14 @@ def pet_sprite(name: str, long_side: int | None = None) -> Sprite | None:
     return Sprite(np.ascontiguousarray(pixels), alpha)
 
 
-def texture_sprite(size: int = 60, seed: int = 1, name: str = "chelsea") -> Sprite:
-    """A procedural animal ``size`` pixels tall filled with skimage texture ``name``."""
+def texture_sprite(
+    size: int = 60, seed: int = 1, name: str = "chelsea", tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+) -> Sprite:
+    """A procedural animal ``size`` pixels tall filled with skimage texture ``name``
+    (times ``tint`` per channel)."""
     rng = np.random.default_rng(seed)
     mask = animal_mask(size, size, rng)
-    pixels = texture(name, size, size, rng)
+    pixels = texture(name, size, size, rng, tint=tint)
     return Sprite(pixels, mask.astype(np.float32))
 
 
@@ -99,9 +102,10 @@ def background(
     window: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0),
     seed: int = 2,
     name: str = "gravel",
+    tint: tuple[float, float, float] = (1.0, 1.0, 1.0),
 ) -> np.ndarray:
     """A background: the ``window`` (fractions x0, y0, x1, y1) of ``REAL_PHOTOS/photo``
-    covering the frame when given and present, else skimage texture ``name``."""
+    covering the frame when given and present, else skimage texture ``name`` (times ``tint``)."""
     if photo is not None and (REAL_PHOTOS / photo).is_file():
         image = cv2.cvtColor(cv2.imread(str(REAL_PHOTOS / photo)), cv2.COLOR_BGR2RGB)
         h, w = image.shape[:2]
@@ -111,7 +115,7 @@ def background(
         image = cv2.resize(image, (math.ceil(w * scale), math.ceil(h * scale)), interpolation=cv2.INTER_AREA)
         y0, x0 = (image.shape[0] - height) // 2, (image.shape[1] - width) // 2
         return np.ascontiguousarray(image[y0 : y0 + height, x0 : x0 + width])
-    return texture(name, height, width, np.random.default_rng(seed))
+    return texture(name, height, width, np.random.default_rng(seed), tint=tint)
 
 
 def _pixel_centred(matrix: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ and :func:`write_jeans_clip` (a clip file in, a clip file and a report out).
 A thin layer over the still-photo pipeline: the first frame is
 :func:`jeanscv.pipeline.apply_jeans` itself (automatic finding, or the clicks, box or
 mask of ``options``), so its picture is the photo's. Each later frame takes its masks from
-:class:`jeanscv.subject.follow.Follower` (optical flow and an edge re-segmentation), frames
+:class:`jeanscv.subject.follow.Follower` (tracking and an edge re-segmentation), frames
 them as a photo's silhouettes are framed, carries the previous frame's jeans by the
 object's motion and settles them with :func:`jeanscv.fitting.follow.refit`, and paints them
 with the photo's :func:`jeanscv.paint.figures.composite`. A scene cut finds the subject

@@ -52,7 +52,7 @@ MIN_MARGIN = 48
 #: Half width of the edge band, as a fraction of the object's size (square root of its area).
 BAND = 0.06
 #: Most corners tracked per object.
-_CORNERS = 300
+_CORNERS = 150
 #: Quantisation of the colour model: bits kept per RGB channel.
 _BITS = 4
 
@@ -169,9 +169,9 @@ class Follower:
         """The object's motion from the previous frame to this one: a 2x3 affine map
         between pixel-centre coordinates of the working copy, None when it cannot be
         measured. Its whole-pixel shift is found by matching its previous pixels (masked
-        template matching over its box and a margin), then refined to an affine map by
-        ECC image alignment over its pixels alone (dense optical flow, on a small object
-        over a busy background, smoothed its motion away into the background's)."""
+        template matching over its box and a margin), then refined by :meth:`_tracked`
+        (dense optical flow, on a small object over a busy background, smoothed its motion
+        away into the background's)."""
         inside = obj.soft > 0.5
         box = _box(inside)
         if box is None:
@@ -230,20 +230,44 @@ class Follower:
             obj.lost = True
             return None, None
         # The mask moves as a whole; the edge band is then re-decided by colour, which
-        # takes up what moved on its own (a leg, the tail).
-        rigid = _warp(obj.soft, motion, self._work)
-        refined = self._refine(obj, rigid, index) & ~taken
-        area = float(np.count_nonzero(refined))
-        if area < max(4.0, LOST_FRACTION * obj.found_area) or self._unlike(obj, refined, index):
+        # takes up what moved on its own (a leg, the tail). All of it on the moved box and
+        # a margin that holds the band and the surroundings ring: not on the whole frame.
+        x0, y0, x1, y1 = self._reach(obj, motion)
+        if x1 <= x0 or y1 <= y0:
             obj.lost = True
             return None, None
-        taken |= refined
+        rigid = _warp(
+            obj.soft, np.array([[1, 0, -x0], [0, 1, -y0]]) @ np.vstack([motion, [0, 0, 1]]), (x1 - x0, y1 - y0)
+        )
+        colours = index[y0:y1, x0:x1]
+        refined = self._refine(obj, rigid, colours) & ~taken[y0:y1, x0:x1]
+        area = float(np.count_nonzero(refined))
+        if area < max(4.0, LOST_FRACTION * obj.found_area) or self._unlike(obj, refined, colours):
+            obj.lost = True
+            return None, None
+        taken[y0:y1, x0:x1] |= refined
         # The colour model drifts with the light; the soft mask is the next frame's prior.
         around = self._surroundings(refined, area)
-        obj.foreground = (1 - MODEL_RATE) * obj.foreground + MODEL_RATE * _histogram(index, refined)
-        obj.background = (1 - MODEL_RATE) * obj.background + MODEL_RATE * _histogram(index, around)
-        obj.soft = cv2.GaussianBlur(refined.astype(np.float32), (3, 3), 0.7)
+        obj.foreground = (1 - MODEL_RATE) * obj.foreground + MODEL_RATE * _histogram(colours, refined)
+        obj.background = (1 - MODEL_RATE) * obj.background + MODEL_RATE * _histogram(colours, around)
+        obj.soft = np.zeros_like(obj.soft)
+        obj.soft[y0:y1, x0:x1] = cv2.GaussianBlur(refined.astype(np.float32), (3, 3), 0.7)
         return self._full(obj.soft), self._to_full(motion)
+
+    def _reach(self, obj: Followed, motion: np.ndarray) -> tuple[int, int, int, int]:
+        """``(x0, y0, x1, y1)``: the object's box moved by ``motion``, with room for the edge
+        band and the surroundings ring, on the working copy."""
+        box = _box(obj.soft > 0.5)
+        if box is None:
+            return 0, 0, 0, 0
+        bx0, by0, bx1, by1 = box
+        corners = np.array([[bx0, by0], [bx1, by0], [bx0, by1], [bx1, by1]], np.float64)
+        moved = corners @ motion[:, :2].T + motion[:, 2]
+        room = int(0.35 * np.sqrt((bx1 - bx0) * (by1 - by0))) + 6
+        width, height = self._work
+        x0, y0 = np.floor(moved.min(axis=0)).astype(int) - room
+        x1, y1 = np.ceil(moved.max(axis=0)).astype(int) + room
+        return max(int(x0), 0), max(int(y0), 0), min(int(x1), width), min(int(y1), height)
 
     @staticmethod
     def _unlike(obj: Followed, mask: np.ndarray, index: np.ndarray) -> bool:
