@@ -287,6 +287,38 @@ def test_a_subject_that_leaves_loses_its_jeans():
     assert results[1].objects[0] is not None
 
 
+def test_key_frames_of_a_clicks_file_switch_the_subject(tmp_path):
+    """Frames 0-3 follow the first animal (its click); the clicks file's key frame 4
+    clicks the second one, which is followed from there."""
+    from jeanscv.run.clips import apply_jeans_to_clip
+    from jeanscv.subject.clicks import Clicks, ObjectClicks, write_clicks
+
+    sprite, ground, _ = _moving()
+    first = sc.Motion((45.0, 72.0), (4.0, 0.0), frames=7)
+    second = sc.Motion((150.0, 72.0), (-4.0, 0.0), frames=7)
+    made = []
+    for k in range(7):
+        pixels, mask_a = sc.frame(sprite, ground, first.transform(k, sprite))
+        pixels, mask_b = sc.frame(sprite, pixels, second.transform(k, sprite))
+        made.append((pixels, mask_a & ~mask_b, mask_b))
+    clicks = Clicks((ObjectClicks((sc.inner_point(made[0][1]),)),), (WIDTH, HEIGHT))
+    clicks = Clicks(
+        clicks.objects,
+        clicks.image_size,
+        {"frames": [{"frame": 4, "objects": [{"positive": [list(sc.inner_point(made[4][2]))]}]}]},
+    )
+    write_clicks(tmp_path / "pets.clicks.json", clicks)
+    results = list(apply_jeans_to_clip((p for p, _, _ in made), clicks=tmp_path / "pets.clicks.json"))
+    assert [r.event for r in results] == ["start", "follow", "follow", "follow", "key", "follow", "follow"]
+    for result, (_, mask_a, mask_b) in zip(results, made):
+        truth = mask_a if result.index < 4 else mask_b
+        assert sc.iou(result.objects[0].silhouette.mask >= 0.5, truth) >= 0.85, result.index
+    bad = tmp_path / "bad.clicks.json"
+    bad.write_text(json.dumps({**json.loads((tmp_path / "pets.clicks.json").read_text()), "frames": [{"frame": 0}]}))
+    with pytest.raises(JeansError, match="clicks file bad.clicks.json: .*frame 0 is"):
+        next(apply_jeans_to_clip((p for p, _, _ in made), clicks=bad))
+
+
 def test_report_has_every_frame_vertices(tmp_path, run_cli, monkeypatch):
     monkeypatch.chdir(tmp_path)
     sprite, ground, motion = _moving(frames=5)

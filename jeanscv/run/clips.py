@@ -42,8 +42,9 @@ class ClipFrameResult:
 
     ``objects``: one entry per followed object, None where it is lost (out of the frame);
     ``event``: ``start`` (the first frame, the still-photo pipeline), ``follow``, ``cut`` (a
-    scene cut: found afresh), ``found`` (a lost subject found again) or ``lost`` (no object
-    wears jeans on this frame).
+    scene cut: found afresh), ``key`` (a key frame of the clicks file: found from its
+    clicks), ``found`` (a lost subject found again) or ``lost`` (no object wears jeans on
+    this frame).
     """
 
     index: int
@@ -245,11 +246,16 @@ def apply_jeans_to_clip(
     :class:`~jeanscv.io.clip.ClipReader`, or any iterable of ``(H, W, 3)`` uint8 frames
     (``fps`` apart) or :class:`~jeanscv.io.clip.ClipFrame` s: a generator you feed your
     own frames to. ``options`` and ``overrides`` as for :func:`jeanscv.pipeline.apply_jeans`;
-    clicks, a box or a mask refer to the first frame. ``limits``: the decoding caps for a file.
+    clicks, a box or a mask refer to the first frame; a clicks file's ``frames`` add key
+    frames (:func:`jeanscv.subject.clicks.key_frames`), where the subject is found afresh
+    from their clicks. ``limits``: the decoding caps for a file.
     Yields a :class:`ClipFrameResult` per frame; the first frame's picture is
     ``apply_jeans(first_frame, options).image``.
     """
     options = (options or JeansOptions()).replace(**overrides)
+    keys = {}
+    if options.clicks is not None:
+        options, keys = _with_key_frames(options)
     if isinstance(source, (str, os.PathLike)):
         with ClipReader(source, limits) as reader:
             yield from apply_jeans_to_clip(reader, options, fps=fps)
@@ -257,10 +263,27 @@ def apply_jeans_to_clip(
     frames = source.frames() if isinstance(source, ClipReader) else iter_frames(source, fps)
     run = _ClipRun(options)
     for frame in frames:
-        if frame.index == 0 or not run.tracks:
+        if frame.index in keys:
+            yield run.find(frame, _automatic(options).replace(clicks=keys[frame.index]), "key")
+        elif frame.index == 0 or not run.tracks:
             yield run.find(frame, options, "start")
         else:
             yield run.follow(frame)
+
+
+def _with_key_frames(options: JeansOptions) -> tuple[JeansOptions, dict]:
+    """The options with their clicks file read, and its key frames (frame -> Clicks)."""
+    from ..subject.clicks import Clicks, key_frames, read_clicks
+
+    clicks = options.clicks
+    if isinstance(clicks, (str, os.PathLike)):
+        try:
+            read = read_clicks(clicks)
+            keys = key_frames(read)
+        except JeansError as exc:
+            raise JeansError(f"clicks file {os.path.basename(clicks)}: {exc}") from None
+        return options.replace(clicks=read), keys
+    return options, key_frames(clicks) if isinstance(clicks, Clicks) else {}
 
 
 def write_jeans_clip(
