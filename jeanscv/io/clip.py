@@ -143,10 +143,10 @@ class ClipReader:
         import av
 
         try:
-            container = av.open(self._file, "r")
+            container = av.open(self._file, "r", metadata_errors="replace")
         except av.EOFError:
             raise JeansError("the clip has no frames (the file ends before the first)") from None
-        except av.FFmpegError as exc:
+        except (av.FFmpegError, UnicodeError, ValueError) as exc:
             raise JeansError(f"not a video or animation this build can read ({_reason(exc)})") from None
         self._container = container
         if not container.streams.video:
@@ -155,7 +155,10 @@ class ClipReader:
         stream.thread_type = "AUTO"  # frame threads: decoding overlaps the fitting's other core
         if container.streams.audio:
             self.audio_stream = container.streams.audio[0]
-        width, height = stream.codec_context.width, stream.codec_context.height
+        context = stream.codec_context
+        if context is None:  # a stream no decoder of this build reads
+            raise JeansError("its video stream cannot be decoded by this build")
+        width, height = context.width, context.height
         rate = stream.average_rate or stream.guessed_rate
         seconds = None
         if stream.duration is not None and stream.time_base:
