@@ -287,20 +287,40 @@ def test_a_subject_that_leaves_loses_its_jeans():
     assert results[1].objects[0] is not None
 
 
+def _two_animals(frames: int = 7) -> list:
+    """``(frame, mask of the left animal, mask of the right one)``: two animals walking
+    towards each other."""
+    sprite, ground, _ = _moving()
+    first = sc.Motion((45.0, 72.0), (4.0, 0.0), frames=frames)
+    second = sc.Motion((150.0, 72.0), (-4.0, 0.0), frames=frames)
+    made = []
+    for k in range(frames):
+        pixels, mask_a = sc.frame(sprite, ground, first.transform(k, sprite))
+        pixels, mask_b = sc.frame(sprite, pixels, second.transform(k, sprite))
+        made.append((pixels, mask_a & ~mask_b, mask_b))
+    return made
+
+
+def test_two_objects_are_followed_each_on_its_own():
+    from jeanscv.run.clips import apply_jeans_to_clip
+    from jeanscv.subject.clicks import Clicks, ObjectClicks
+
+    made = _two_animals(5)
+    clicks = Clicks(tuple(ObjectClicks((sc.inner_point(made[0][k]),)) for k in (1, 2)), (WIDTH, HEIGHT))
+    for result, (_, mask_a, mask_b) in zip(apply_jeans_to_clip((p for p, _, _ in made), clicks=clicks), made):
+        assert len(result.objects) == 2
+        for obj, truth in zip(result.objects, (mask_a, mask_b)):
+            assert sc.iou(obj.silhouette.mask >= 0.5, truth) >= 0.85, result.index
+        assert len(result.report()["objects"]) == 2
+
+
 def test_key_frames_of_a_clicks_file_switch_the_subject(tmp_path):
     """Frames 0-3 follow the first animal (its click); the clicks file's key frame 4
     clicks the second one, which is followed from there."""
     from jeanscv.run.clips import apply_jeans_to_clip
     from jeanscv.subject.clicks import Clicks, ObjectClicks, write_clicks
 
-    sprite, ground, _ = _moving()
-    first = sc.Motion((45.0, 72.0), (4.0, 0.0), frames=7)
-    second = sc.Motion((150.0, 72.0), (-4.0, 0.0), frames=7)
-    made = []
-    for k in range(7):
-        pixels, mask_a = sc.frame(sprite, ground, first.transform(k, sprite))
-        pixels, mask_b = sc.frame(sprite, pixels, second.transform(k, sprite))
-        made.append((pixels, mask_a & ~mask_b, mask_b))
+    made = _two_animals()
     clicks = Clicks((ObjectClicks((sc.inner_point(made[0][1]),)),), (WIDTH, HEIGHT))
     clicks = Clicks(
         clicks.objects,
