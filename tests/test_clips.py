@@ -339,6 +339,22 @@ def test_key_frames_of_a_clicks_file_switch_the_subject(tmp_path):
         next(apply_jeans_to_clip((p for p, _, _ in made), clicks=bad))
 
 
+def test_a_subject_that_comes_back_gets_its_jeans_again():
+    """Out of the frame: no jeans; back in: found again (an automatic look once a second
+    of clip, here every other frame) and followed."""
+    from jeanscv.run.clips import apply_jeans_to_clip
+
+    sprite, ground, _ = _moving()
+    xs = [70, 120, 170, 240, 300, 300, 240, 170, 120, 100]
+    made = [sc.frame(sprite, ground, sc.Motion((x, 72.0), frames=1).transform(0, sprite)) for x in xs]
+    results = list(apply_jeans_to_clip((p for p, _ in made), mask=made[0][1], fps=2.0))
+    for result, (pixels, truth) in zip(results, made):
+        if not truth.any():
+            assert result.objects == [None] and np.array_equal(result.image, pixels)
+    assert "found" in [r.event for r in results[6:]]
+    assert sc.iou(results[-1].objects[0].silhouette.mask >= 0.5, made[-1][1]) >= 0.9
+
+
 def test_report_has_every_frame_vertices(tmp_path, run_cli, monkeypatch):
     monkeypatch.chdir(tmp_path)
     sprite, ground, motion = _moving(frames=5)
