@@ -355,6 +355,20 @@ def test_a_subject_that_comes_back_gets_its_jeans_again():
     assert sc.iou(results[-1].objects[0].silhouette.mask >= 0.5, made[-1][1]) >= 0.9
 
 
+def test_a_subject_that_comes_in_later_is_found_and_an_empty_clip_fails():
+    from jeanscv.run.clips import apply_jeans_to_clip
+
+    sprite, _, _ = _moving()
+    ground = np.full((HEIGHT, WIDTH, 3), (90, 140, 90), np.uint8)  # nothing to find on the empty frames
+    xs = [300, 300, 300, 100, 100, 104]
+    made = [sc.frame(sprite, ground, sc.Motion((x, 72.0), frames=1).transform(0, sprite)) for x in xs]
+    results = list(apply_jeans_to_clip((p for p, _ in made), fps=2.0))  # a look a second: frames 0, 2, 4
+    assert [r.event for r in results] == ["lost"] * 4 + ["start", "follow"] and results[0].objects == []
+    assert sc.iou(results[5].objects[0].silhouette.mask >= 0.5, made[5][1]) >= 0.85
+    with pytest.raises(JeansError, match="on any frame"):
+        list(apply_jeans_to_clip((p for p, _ in made[:3]), fps=2.0))
+
+
 def test_report_has_every_frame_vertices(tmp_path, run_cli, monkeypatch):
     monkeypatch.chdir(tmp_path)
     sprite, ground, motion = _moving(frames=5)

@@ -118,6 +118,7 @@ class _ClipRun:
         self.tracks: list[_Track] = []
         self.kind = "photo"
         self.looked_at = -np.inf
+        self.missed = ""  # why the last automatic look found nothing
 
     # ------------------------------------------------------------ finding afresh
     def find(self, frame: ClipFrame, options: JeansOptions, event: str) -> ClipFrameResult:
@@ -129,6 +130,23 @@ class _ClipRun:
         self.tracks = [_Track(obj, obj) for obj in result.objects]
         self.follower.start(frame.pixels, [obj.silhouette.mask for obj in result.objects])
         return ClipFrameResult(frame.index, frame.time, frame.duration, result.image, list(result.objects), event)
+
+    def start(self, frame: ClipFrame, options: JeansOptions) -> ClipFrameResult:
+        """The first frame, or a frame while nothing has been found yet: the still-photo
+        pipeline. With the subject given (clicks, a box, a mask) its failure is the clip's;
+        found automatically, a frame with nothing to find goes by without jeans, and the
+        next look is :data:`LOOK_AGAIN_SECONDS` later."""
+        given = options.points or options.box is not None or options.clicks is not None or options.mask is not None
+        if frame.index == 0 and given:
+            return self.find(frame, options, "start")
+        if frame.time - self.looked_at < LOOK_AGAIN_SECONDS:
+            return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [], "lost")
+        self.looked_at = frame.time
+        try:
+            return self.find(frame, options if frame.index == 0 else _automatic(options), "start")
+        except JeansError as exc:
+            self.missed = str(exc)
+            return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [], "lost")
 
     def look_again(self, frame: ClipFrame) -> ClipFrameResult | None:
         """Every :data:`LOOK_AGAIN_SECONDS` while every object is lost: the subject found
@@ -146,7 +164,7 @@ class _ClipRun:
 
         # The colours of what was found against those of what was lost.
         models = [obj.foreground for obj in self.follower.objects]
-        same = any(
+        same = not lost_models or any(
             cv2.compareHist(lost.astype(np.float32), new.astype(np.float32), cv2.HISTCMP_BHATTACHARYYA) < SAME_SUBJECT
             for lost in lost_models
             for new in models
@@ -262,13 +280,18 @@ def apply_jeans_to_clip(
         return
     frames = source.frames() if isinstance(source, ClipReader) else iter_frames(source, fps)
     run = _ClipRun(options)
+    found = False
     for frame in frames:
         if frame.index in keys:
-            yield run.find(frame, _automatic(options).replace(clicks=keys[frame.index]), "key")
+            result = run.find(frame, _automatic(options).replace(clicks=keys[frame.index]), "key")
         elif frame.index == 0 or not run.tracks:
-            yield run.find(frame, options, "start")
+            result = run.start(frame, options)
         else:
-            yield run.follow(frame)
+            result = run.follow(frame)
+        found = found or any(obj is not None for obj in result.objects)
+        yield result
+    if not found:  # as a photo with nothing in it: the clip fails (a file writer keeps nothing)
+        raise JeansError(f"{run.missed or 'no object found'} on any frame")
 
 
 def _with_key_frames(options: JeansOptions) -> tuple[JeansOptions, dict]:
