@@ -218,7 +218,7 @@ def _outputs(base: Path, path: Path, fmt: str | None, extras: tuple[str, ...]) -
     from jeanscv.io.write import output_extension
 
     stem = base.name + ".jeans"
-    outputs = {"image": base.with_name(stem + output_extension(path, fmt))}
+    outputs = {"image": base.with_name(stem + output_extension(path, fmt, clips=True))}
     for extra in extras:
         if extra == "json" or not is_clip_path(path):
             outputs[extra] = base.with_name(f"{stem}.{extra}")

@@ -416,3 +416,20 @@ def test_frame_times_are_kept_for_variable_rates(tmp_path):
     back = _decoded(tmp_path / "vfr.mp4")
     np.testing.assert_allclose([f.time for f in back], times, atol=1e-3)
     assert Fraction(1, 90000)  # the MP4 time base the writer uses
+
+
+def test_output_names_are_decided_from_the_input_name():
+    from jeanscv.io.write import output_extension
+
+    assert output_extension("dog.gif") == ".png"  # a writer of stills (the page, Dask): its first frame
+    cases = {
+        ("dog.gif", None): ".gif",
+        ("clip.mov", None): ".mp4",
+        ("clip.webm", "gif"): ".gif",
+        ("clip.mkv", "jpg"): ".mp4",
+        ("dog.gif", "webp"): ".webp",
+        ("cat.jpg", "mp4"): ".mp4",
+        ("cat.jpg", None): ".jpg",
+        ("moving.png", None): ".png",
+    }
+    assert {case: output_extension(*case, clips=True) for case in cases} == cases

@@ -316,21 +316,23 @@ _KEEP_EXTENSION = {
 }
 
 
-def output_extension(input_path: str | os.PathLike, fmt: str | None = None) -> str:
+def output_extension(input_path: str | os.PathLike, fmt: str | None = None, clips: bool = False) -> str:
     """The extension (with dot) of the picture written for ``input_path``.
 
     Decided from the name alone, so that a resumed run finds the outputs of the
     previous one without decoding anything: SVG -> ``.png`` (the paper figure),
     RAW -> ``.jpg``, JPEG/PNG/WebP/TIFF keep theirs, other formats -> ``.png``;
-    clips: GIF -> ``.gif``, videos -> ``.mp4``. ``fmt`` (``png``/``jpg``/``webp``/``gif``/
-    ``mp4``) overrides all, except that a clip named as one is never a ``jpg`` (it keeps its
-    own format; ``png`` is an animated PNG); a still with ``gif`` or ``mp4`` becomes a
-    one-frame clip.
+    ``fmt`` (``png``/``jpg``/``webp``) overrides all. With ``clips`` (a writer of
+    clips, the command line), clips keep theirs: GIF -> ``.gif``, videos -> ``.mp4``,
+    and ``fmt`` may be ``gif`` or ``mp4`` too; a clip named as one is never a ``jpg`` (it
+    keeps its own format; ``png`` is an animated PNG), and a still with ``gif`` or ``mp4``
+    becomes a one-frame clip. Without ``clips`` (a writer of still pictures: the web
+    page, the Dask runner), a GIF's first frame becomes a ``.png``.
     """
     from .clip_names import CLIP_EXTENSIONS, clip_format
 
     suffix = Path(input_path).suffix.lower()
-    if suffix in CLIP_EXTENSIONS:
+    if clips and suffix in CLIP_EXTENSIONS:
         return "." + clip_format(input_path, fmt)
     if fmt:
         return "." + fmt.lower().lstrip(".")
