@@ -131,10 +131,10 @@ class ClipReader:
         self._pillow = None
         try:
             self.info = self._open()
+            self._check_header()
         except BaseException:
             self.close()
             raise
-        self._check_header()
 
     # -------------------------------------------------------------- opening
     def _open(self) -> ClipInfo:
