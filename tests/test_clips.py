@@ -402,6 +402,23 @@ def test_format_converts_and_a_folder_takes_clips_beside_photos(tmp_path, run_cl
     assert again.exit_code == 0 and "0 ok, 0 failed, 3 skipped" in again.stderr + again.stdout
 
 
+def test_captions_and_side_by_side_on_every_frame(tmp_path, run_cli):
+    sprite, ground, motion = _moving(frames=3)
+    made = _frames(sprite, ground, motion)
+    write_clip(tmp_path / "pet.mp4", [p for p, _, _ in made], "mp4", fps=10)
+    Image.fromarray(made[0][1]).save(tmp_path / "mask.png")
+    result = run_cli(
+        tmp_path / "pet.mp4", *FAST, "-q", "--mask", tmp_path / "mask.png", "--top", "how would", "--side-by-side"
+    )
+    assert result.exit_code == 0, result.stderr
+    frames = _decoded(tmp_path / "pet.jeans.mp4")
+    assert len(frames) == 3 and frames[0].pixels.shape == (HEIGHT, 2 * WIDTH, 3)
+    for frame, (pixels, _, _) in zip(frames, made):
+        left, right = frame.pixels[:, :WIDTH].astype(int), frame.pixels[:, WIDTH:].astype(int)
+        assert np.abs(left - pixels).mean() < 12  # the original, through H.264
+        assert (right[: HEIGHT // 4].min(axis=-1) > 230).sum() > 50  # white caption letters along the top
+
+
 def test_clip_bytes_of_a_still():
     data = clip_bytes([np.zeros((8, 8, 3), np.uint8)], "mp4")
     assert data[4:8] == b"ftyp"

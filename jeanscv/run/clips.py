@@ -44,7 +44,7 @@ class ClipFrameResult:
     ``event``: ``start`` (the first frame, the still-photo pipeline), ``follow``, ``cut`` (a
     scene cut: found afresh), ``key`` (a key frame of the clicks file: found from its
     clicks), ``found`` (a lost subject found again) or ``lost`` (no object wears jeans on
-    this frame).
+    this frame); ``original``: the frame as decoded.
     """
 
     index: int
@@ -53,6 +53,7 @@ class ClipFrameResult:
     image: np.ndarray
     objects: list[FittedObject | None]
     event: str
+    original: np.ndarray | None = None  # the frame as decoded
 
     def report(self) -> dict:
         """This frame's entry in the clip report: per object its image vertices, box,
@@ -289,6 +290,7 @@ def apply_jeans_to_clip(
         else:
             result = run.follow(frame)
         found = found or any(obj is not None for obj in result.objects)
+        result.original = frame.pixels
         yield result
     if not found:  # as a photo with nothing in it: the clip fails (a file writer keeps nothing)
         raise JeansError(f"{run.missed or 'no object found'} on any frame")
@@ -317,11 +319,14 @@ def write_jeans_clip(
     fmt: str | None = None,
     limits: ClipLimits | None = None,
     on_frame=None,
+    decorate=None,
 ) -> dict:
     """Jeans on the clip ``source``, written to ``output`` as ``fmt`` (default: from
     ``output``'s extension) with the source's timing, looping and audio, atomically.
 
-    ``on_frame(ClipFrameResult)`` is called after each frame (progress). Returns the clip
+    ``on_frame(ClipFrameResult)`` is called after each frame (progress);
+    ``decorate(image, original) -> image`` changes each frame before it is encoded (the
+    command's captions and side by side). Returns the clip
     report: the clip's size, frames, fps and duration, why decoding stopped early if it did
     (``stopped``), and ``frames``, each frame's :meth:`ClipFrameResult.report`.
     """
@@ -337,7 +342,8 @@ def write_jeans_clip(
                 frames.append(result.report())
                 if on_frame is not None:
                     on_frame(result)
-                yield ClipFrame(result.index, result.time, result.duration, result.image)
+                image = result.image if decorate is None else decorate(result.image, result.original)
+                yield ClipFrame(result.index, result.time, result.duration, image)
 
         write_clip(output, painted(), fmt, fps=reader.info.fps, loop=reader.info.loop, reader=reader)
         info = reader.info
