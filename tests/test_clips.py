@@ -266,11 +266,14 @@ def test_scene_cut_finds_the_subject_again():
     other = sc.background(WIDTH, HEIGHT, seed=9, name="brick")
     elsewhere = sc.Motion((105.0, 60.0), frames=4)
     made = _frames(sprite, ground, motion) + _frames(sprite, np.ascontiguousarray(255 - other // 3), elsewhere)
-    results = list(apply_jeans_to_clip((p for p, _, _ in made), mask=made[0][1]))
-    assert [r.event for r in results] == ["start", "follow", "follow", "follow", "cut", "follow", "follow", "follow"]
+    empty = np.full((HEIGHT, WIDTH, 3), (200, 60, 60), np.uint8)  # a title card: nothing to find
+    results = list(apply_jeans_to_clip([p for p, _, _ in made] + [empty, empty], mask=made[0][1]))
+    events = ["start", "follow", "follow", "follow", "cut", "follow", "follow", "follow", "lost", "lost"]
+    assert [r.event for r in results] == events
     for result, (_, truth, _) in list(zip(results, made))[4:]:
         assert result.objects and result.objects[0] is not None
         assert sc.iou(result.objects[0].silhouette.mask >= 0.5, truth) >= 0.7
+    assert results[-1].objects == [] and np.array_equal(results[-1].image, empty)
 
 
 def test_a_subject_that_leaves_loses_its_jeans():

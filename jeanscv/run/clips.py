@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -87,8 +87,6 @@ class _Track:
 
     fitted: FittedObject | None
     first: FittedObject  # as found: its fit's preset and garment serve every frame
-    colours: np.ndarray | None = None
-    extra: dict = field(default_factory=dict)
 
 
 def _framed(mask: np.ndarray, method: str) -> Silhouette:
@@ -132,7 +130,7 @@ class _ClipRun:
         self.follower.start(frame.pixels, [obj.silhouette.mask for obj in result.objects])
         return ClipFrameResult(frame.index, frame.time, frame.duration, result.image, list(result.objects), event)
 
-    def start(self, frame: ClipFrame, options: JeansOptions) -> ClipFrameResult:
+    def start(self, frame: ClipFrame, options: JeansOptions, event: str = "start") -> ClipFrameResult:
         """The first frame, or a frame while nothing has been found yet: the still-photo
         pipeline. With the subject given (clicks, a box, a mask) its failure is the clip's;
         found automatically, a frame with nothing to find goes by without jeans, and the
@@ -144,9 +142,10 @@ class _ClipRun:
             return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [], "lost")
         self.looked_at = frame.time
         try:
-            return self.find(frame, options if frame.index == 0 else _automatic(options), "start")
+            return self.find(frame, options if frame.index == 0 else _automatic(options), event)
         except JeansError as exc:
             self.missed = str(exc)
+            self.tracks = []  # nothing to follow: the next frames look again
             return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [], "lost")
 
     def look_again(self, frame: ClipFrame) -> ClipFrameResult | None:
@@ -181,8 +180,9 @@ class _ClipRun:
         if self.kind == "silhouette":
             return self._follow_drawing(frame)
         step = self.follower.step(frame.pixels)
-        if step.cut:
-            return self.find(frame, _automatic(self.options), "cut")
+        if step.cut:  # found afresh; a scene with nothing to find goes by without jeans
+            self.looked_at = -np.inf
+            return self.start(frame, _automatic(self.options), "cut")
         image = frame.pixels
         objects: list[FittedObject | None] = []
         for index, (track, mask, motion) in enumerate(zip(self.tracks, step.masks, step.motions)):
