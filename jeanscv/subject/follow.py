@@ -31,6 +31,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..geometry import mask_box
+from .masks import largest_component
+
 #: Longest side (pixels) of the copy the tracking and the re-segmentation run on.
 WORK_SIDE = 640
 #: Bhattacharyya distance between consecutive frames' colour histograms above which the
@@ -43,7 +46,7 @@ LOST_FRACTION = 0.15
 UNLIKE = 0.5
 #: Share of the colour model renewed from each frame's mask.
 MODEL_RATE = 0.1
-#: How much the warped mask counts against the colour model in the edge band (0..1).
+#: How much the moved mask counts against the colour model in the edge band (0..1).
 PRIOR_WEIGHT = 0.5
 #: Margin of the search box around an object, as a fraction of the box's longer side.
 ROI_MARGIN = 0.3
@@ -219,10 +222,7 @@ class Follower:
         matrix, _ = cv2.estimateAffinePartial2D(start[good], moved[good], method=cv2.RANSAC, ransacReprojThreshold=1.5)
         if matrix is None:
             return shifted
-        # OpenCV's pixel centres are at whole numbers, jeanscv's at +0.5: the same map between them.
-        to_cv = np.array([[1, 0, -0.5], [0, 1, -0.5], [0, 0, 1]])
-        from_cv = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1]])
-        return (from_cv @ np.vstack([matrix, [0, 0, 1]]) @ to_cv)[:2]
+        return _shifted(matrix, 0.5)  # OpenCV's pixel centres are at whole numbers, jeanscv's at +0.5
 
     def _follow(self, obj: Followed, gray, index, taken) -> tuple[np.ndarray | None, np.ndarray | None]:
         motion = self._motion(obj, gray)
@@ -295,7 +295,7 @@ class Follower:
         score = cv2.GaussianBlur(score, (5, 5), 1.0)  # neighbours agree: no speckle on the edge
         refined = score > 0.5
         refined = cv2.morphologyEx(refined.view(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
-        return _largest(refined)
+        return largest_component(refined)
 
     def _full(self, soft: np.ndarray) -> np.ndarray:
         if self._work == self._size:
@@ -315,26 +315,23 @@ class Follower:
 
 def _box(mask: np.ndarray) -> tuple[int, int, int, int] | None:
     """``(x0, y0, x1, y1)`` of a bool mask, None when empty."""
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    if rows.size == 0:
+    if not mask.any():
         return None
-    return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
+    x, y, width, height = mask_box(mask)
+    return x, y, x + width, y + height
+
+
+def _shifted(matrix: np.ndarray, by: float) -> np.ndarray:
+    """The 2x3 ``matrix`` between coordinates shifted by ``by`` on both axes: the same map
+    between pixel centres at whole numbers (OpenCV's, ``by=0.5`` from them) and at +0.5."""
+    shift = np.array([[1.0, 0.0, by], [0.0, 1.0, by], [0.0, 0.0, 1.0]])
+    return (shift @ np.vstack([matrix, [0.0, 0.0, 1.0]]) @ np.linalg.inv(shift))[:2]
 
 
 def _warp(soft: np.ndarray, motion: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """``soft`` moved by ``motion`` (2x3 between pixel-centre coordinates)."""
-    full = np.vstack([motion, [0, 0, 1]])
-    shift = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1]])
-    unshift = np.array([[1, 0, -0.5], [0, 1, -0.5], [0, 0, 1]])
-    matrix = (unshift @ full @ shift)[:2]
+    matrix = _shifted(motion, -0.5)
     return cv2.warpAffine(soft, matrix, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-
-
-def _largest(mask: np.ndarray) -> np.ndarray:
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
-    if count <= 2:
-        return mask
-    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
 
 
 __all__ = ["CUT_DISTANCE", "FollowStep", "Follower", "WORK_SIDE"]
