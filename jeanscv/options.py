@@ -98,7 +98,7 @@ class JeansOptions:
     # Decoding.
     max_pixels: int = 100_000_000
     raw_half_size: bool = False
-    max_frames: int = 3000
+    max_frames: int = 18_000
 
     def __post_init__(self) -> None:
         # Lists and other sequences of points are kept as a tuple, so options stay immutable.

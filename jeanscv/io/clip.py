@@ -32,9 +32,10 @@ from .clip_names import CLIP_EXTENSIONS, CLIP_FORMATS, MAYBE_ANIMATED_EXTENSIONS
 @dataclass(frozen=True)
 class ClipLimits:
     """Caps on what is decoded: frames, seconds, and pixels per frame (``width x height``).
-    A clip over one gets a one-line ``JeansError`` naming the cap."""
+    A clip over one gets a one-line ``JeansError`` naming the cap. The defaults take a
+    10-minute clip at 30 fps, in 4K at most."""
 
-    max_frames: int = 3000
+    max_frames: int = 18_000
     max_seconds: float = 600.0
     max_frame_pixels: int = 3840 * 2160
 
