@@ -101,7 +101,7 @@ def test_mp4_audio_is_copied_and_rotation_honoured(tmp_path):
             out.mux(audio.encode(sound))
         out.mux(video.encode())
         out.mux(audio.encode())
-    with ClipReader(src) as reader:
+    with ClipReader(src, keep_audio=True) as reader:
         frames = list(reader.frames())
         assert reader.info.audio and reader.info.rotation == 90 and reader.info.size == (16, 32)
         write_clip(tmp_path / "out.mp4", frames, "mp4", fps=10.0, reader=reader)
@@ -111,6 +111,34 @@ def test_mp4_audio_is_copied_and_rotation_honoured(tmp_path):
     with av.open(str(tmp_path / "out.mp4")) as back:
         assert len(back.streams.audio) == 1 and back.streams.audio[0].codec_context.name == "aac"
         assert sum(1 for _ in back.demux(back.streams.audio[0]) if _.size) >= 4
+
+
+def test_the_command_keeps_a_video_sound(tmp_path, run_cli):
+    import av
+
+    sprite, ground, motion = _moving(frames=4)
+    made = _frames(sprite, ground, motion)
+    src = tmp_path / "pet.mov"
+    with av.open(str(src), "w") as out:
+        video = out.add_stream("libx264", rate=10)
+        video.width, video.height, video.pix_fmt = WIDTH, HEIGHT, "yuv420p"
+        audio = out.add_stream("aac", rate=8000)
+        for k, (pixels, _, _) in enumerate(made):
+            frame = av.VideoFrame.from_ndarray(pixels, format="rgb24")
+            frame.pts = k
+            out.mux(video.encode(frame))
+        for k in range(4):
+            sound = av.AudioFrame.from_ndarray(np.zeros((1, 1024), np.float32), format="fltp", layout="mono")
+            sound.sample_rate, sound.pts = 8000, k * 1024
+            out.mux(audio.encode(sound))
+        out.mux(video.encode())
+        out.mux(audio.encode())
+    Image.fromarray(made[0][1]).save(tmp_path / "mask.png")
+    result = run_cli(src, *FAST, "-q", "--mask", tmp_path / "mask.png", "--json")
+    assert result.exit_code == 0, result.stderr
+    with av.open(str(tmp_path / "pet.jeans.mp4")) as back:
+        assert len(back.streams.audio) == 1 and back.streams.video[0].frames == 4
+    assert json.loads((tmp_path / "pet.jeans.json").read_text())["audio"] is True
 
 
 def test_a_failure_while_writing_leaves_nothing(tmp_path):

@@ -114,12 +114,12 @@ class ClipReader:
     """Frames of a clip file, decoded one at a time (a context manager; :meth:`frames`).
 
     The header is read on opening: a clip with no video stream, or over ``limits`` by its
-    header, raises ``JeansError`` at once. ``audio_packets`` collects the audio stream's
-    packets as the frames are demuxed, for a :class:`ClipWriter` to copy (and empties as
-    it takes them).
+    header, raises ``JeansError`` at once. With ``keep_audio``, ``audio_packets`` collects
+    the audio stream's packets as the frames are demuxed, for a :class:`ClipWriter` to copy
+    (and empties as it takes them); without, they are dropped (memory stays flat).
     """
 
-    def __init__(self, path: str | os.PathLike, limits: ClipLimits | None = None) -> None:
+    def __init__(self, path: str | os.PathLike, limits: ClipLimits | None = None, keep_audio: bool = False) -> None:
         from .image import _open_nonempty
 
         self.path = Path(path)
@@ -127,6 +127,7 @@ class ClipReader:
         self.stopped: str | None = None  # why decoding ended before the end of the file
         self.audio_packets: list = []
         self.audio_stream = None
+        self.keep_audio = keep_audio
         self._file: BinaryIO = _open_nonempty(self.path)
         self._container = None
         self._pillow = None
@@ -250,7 +251,7 @@ class ClipReader:
         last_time = -1.0
         for packet in container.demux(streams):
             if packet.stream.type == "audio":
-                if packet.dts is not None:
+                if self.keep_audio and packet.dts is not None:
                     self.audio_packets.append(packet)
                 continue
             for frame in packet.decode():

@@ -335,7 +335,7 @@ def write_jeans_clip(
     options = options or JeansOptions()
     fmt = fmt or clip_format(output)
     frames: list[dict] = []
-    with ClipReader(source, limits) as reader:
+    with ClipReader(source, limits, keep_audio=fmt == "mp4") as reader:
 
         def painted() -> Iterator[ClipFrame]:
             for result in apply_jeans_to_clip(reader, options):
