@@ -80,27 +80,37 @@ def test_gif_keeps_its_loop_count_and_delays(tmp_path):
     assert delays == [100, 50, 200]
 
 
-def test_mp4_audio_is_copied_and_rotation_honoured(tmp_path):
+def _video_with_sound(path: Path, frames: list, rotation: int = 0) -> None:
+    """An H.264 clip of ``frames`` (10 fps) with a second of AAC silence; ``rotation``: its
+    display matrix (degrees counter-clockwise)."""
     import av
 
-    src = tmp_path / "phone.mp4"
-    with av.open(str(src), "w") as out:
+    with av.open(str(path), "w") as out:
         video = out.add_stream("libx264", rate=10)
-        video.width, video.height, video.pix_fmt = 32, 16, "yuv420p"
-        video.set_display_rotation(90)  # shown turned a quarter counter-clockwise
+        video.height, video.width = frames[0].shape[:2]
+        video.pix_fmt = "yuv420p"
+        if rotation:
+            video.set_display_rotation(rotation)
         audio = out.add_stream("aac", rate=8000)
-        picture = np.zeros((16, 32, 3), np.uint8)
-        picture[:8, :16] = 255  # stored top-left corner white
-        for k in range(4):
-            frame = av.VideoFrame.from_ndarray(picture, format="rgb24")
+        for k, pixels in enumerate(frames):
+            frame = av.VideoFrame.from_ndarray(pixels, format="rgb24")
             frame.pts = k
             out.mux(video.encode(frame))
-        for k in range(4):
+        for k in range(8):
             sound = av.AudioFrame.from_ndarray(np.zeros((1, 1024), np.float32), format="fltp", layout="mono")
             sound.sample_rate, sound.pts = 8000, k * 1024
             out.mux(audio.encode(sound))
         out.mux(video.encode())
         out.mux(audio.encode())
+
+
+def test_mp4_audio_is_copied_and_rotation_honoured(tmp_path):
+    import av
+
+    picture = np.zeros((16, 32, 3), np.uint8)
+    picture[:8, :16] = 255  # stored top-left corner white
+    src = tmp_path / "phone.mp4"
+    _video_with_sound(src, [picture] * 4, rotation=90)  # shown turned a quarter counter-clockwise
     with ClipReader(src, keep_audio=True) as reader:
         frames = list(reader.frames())
         assert reader.info.audio and reader.info.rotation == 90 and reader.info.size == (16, 32)
@@ -118,23 +128,9 @@ def test_the_command_keeps_a_video_sound(tmp_path, run_cli):
 
     sprite, ground, motion = _moving(frames=4)
     made = _frames(sprite, ground, motion)
-    src = tmp_path / "pet.mov"
-    with av.open(str(src), "w") as out:
-        video = out.add_stream("libx264", rate=10)
-        video.width, video.height, video.pix_fmt = WIDTH, HEIGHT, "yuv420p"
-        audio = out.add_stream("aac", rate=8000)
-        for k, (pixels, _, _) in enumerate(made):
-            frame = av.VideoFrame.from_ndarray(pixels, format="rgb24")
-            frame.pts = k
-            out.mux(video.encode(frame))
-        for k in range(4):
-            sound = av.AudioFrame.from_ndarray(np.zeros((1, 1024), np.float32), format="fltp", layout="mono")
-            sound.sample_rate, sound.pts = 8000, k * 1024
-            out.mux(audio.encode(sound))
-        out.mux(video.encode())
-        out.mux(audio.encode())
+    _video_with_sound(tmp_path / "pet.mov", [pixels for pixels, _, _ in made])
     Image.fromarray(made[0][1]).save(tmp_path / "mask.png")
-    result = run_cli(src, *FAST, "-q", "--mask", tmp_path / "mask.png", "--json")
+    result = run_cli(tmp_path / "pet.mov", *FAST, "-q", "--mask", tmp_path / "mask.png", "--json")
     assert result.exit_code == 0, result.stderr
     with av.open(str(tmp_path / "pet.jeans.mp4")) as back:
         assert len(back.streams.audio) == 1 and back.streams.video[0].frames == 4
