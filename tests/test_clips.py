@@ -372,13 +372,13 @@ def test_a_subject_that_comes_back_gets_its_jeans_again():
     from jeanscv.run.clips import apply_jeans_to_clip
 
     sprite, ground, _ = _moving()
-    xs = [70, 120, 170, 240, 300, 300, 240, 170, 120, 100]
+    xs = [70, 170, 300, 300, 120, 100, 100]
     made = [sc.frame(sprite, ground, sc.Motion((x, 72.0), frames=1).transform(0, sprite)) for x in xs]
     results = list(apply_jeans_to_clip((p for p, _ in made), mask=made[0][1], fps=2.0))
     for result, (pixels, truth) in zip(results, made):
         if not truth.any():
             assert result.objects == [None] and np.array_equal(result.image, pixels)
-    assert "found" in [r.event for r in results[6:]]
+    assert "found" in [r.event for r in results[4:]]
     assert sc.iou(results[-1].objects[0].silhouette.mask >= 0.5, made[-1][1]) >= 0.9
 
 
