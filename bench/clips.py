@@ -187,8 +187,9 @@ def look(path: Path, count: int = 8) -> Path:
 def docs_examples(folder: Path) -> None:
     """The examples of docs/clips.md: a textured animal (testkit, no photo of the shared
     set) walking, turning and growing over grass, as ``walk.gif`` and ``walk.mp4``, run
-    through the command as a user would (automatic subject on the first frame), and
-    ``walk.strip.jpg``: input frames above, output frames below."""
+    through the command as a user would (automatic subject on the first frame), kept as
+    ``walk_after.gif`` and ``walk_after.mp4``, and ``walk.strip.jpg``: input frames above,
+    output frames below."""
     from click.testing import CliRunner
 
     from jeanscv.io.clip import write_clip
@@ -204,10 +205,13 @@ def docs_examples(folder: Path) -> None:
     for name in ("walk.gif", "walk.mp4"):
         result = CliRunner().invoke(cli, [str(folder / name), "--overwrite", "-q"])
         assert result.exit_code == 0, result.output
-    (folder / "walk.mp4").unlink()  # the GIF shows the input; the MP4 output stays
+    (folder / "walk.mp4").unlink()  # the strip shows the input
+    # NAME.jeans.* is an output to git and to jeanscv itself: the docs keep them as walk_after.*
+    for suffix in (".gif", ".mp4"):
+        (folder / f"walk.jeans{suffix}").replace(folder / f"walk_after{suffix}")
     from jeanscv.io.clip import ClipReader
 
-    with ClipReader(folder / "walk.jeans.gif") as reader:
+    with ClipReader(folder / "walk_after.gif") as reader:
         out = [frame.pixels for frame in reader.frames()]
     picked = [0, 6, 12, 18, 23]
     strip = np.vstack([np.hstack([frames[k] for k in picked]), np.hstack([out[k] for k in picked])])
