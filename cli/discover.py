@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-OUTPUT_FORMATS = ("png", "jpg", "webp")
+OUTPUT_FORMATS = ("png", "jpg", "webp", "gif", "mp4")
 
 # Output extension kept for photos whose format the writers can encode; everything
 # else becomes PNG (lossless, keeps alpha), and RAW becomes JPEG like a camera would.
@@ -71,11 +71,12 @@ def _is_own_output_name(name: str) -> bool:
 
 
 def candidate_extensions() -> frozenset[str]:
-    """Lower-case extensions taken from folders: photos, RAW and SVG."""
+    """Lower-case extensions taken from folders: photos, RAW, SVG and clips."""
+    from jeanscv.io.clip import CLIP_EXTENSIONS
     from jeanscv.io.image import SUPPORTED_EXTENSIONS
     from jeanscv.io.svg import SVG_EXTENSIONS
 
-    return SUPPORTED_EXTENSIONS | SVG_EXTENSIONS
+    return SUPPORTED_EXTENSIONS | SVG_EXTENSIONS | CLIP_EXTENSIONS
 
 
 def _walk(folder: Path, recursive: bool) -> list[tuple[str, ...]]:
@@ -210,13 +211,17 @@ def _jobs(
 
 
 def _outputs(base: Path, path: Path, fmt: str | None, extras: tuple[str, ...]) -> dict[str, Path]:
-    """Output paths ``base.jeans.EXT`` for the picture and each sidecar in ``extras``."""
+    """Output paths ``base.jeans.EXT`` for the picture and each sidecar in ``extras``; a
+    clip (by its name) has only the ``json`` sidecar: no single fit to draw as SVG or to
+    animate."""
+    from jeanscv.io.clip import is_clip_path
     from jeanscv.io.write import output_extension
 
     stem = base.name + ".jeans"
-    outputs = {"image": base.with_name(stem + output_extension(path, fmt))}
+    outputs = {"image": base.with_name(stem + output_extension(path, fmt, clips=True))}
     for extra in extras:
-        outputs[extra] = base.with_name(f"{stem}.{extra}")
+        if extra == "json" or not is_clip_path(path):
+            outputs[extra] = base.with_name(f"{stem}.{extra}")
     return outputs
 
 

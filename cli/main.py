@@ -37,6 +37,8 @@ Examples:
   jeanscv pets.jpg --box 300,180,640,470   jeans on the thing in that box (x0,y0,x1,y1)
   jeanscv pets.jpg --clicks pets.clicks.json                   replay saved clicks
   jeanscv car.jpg --posture any         jeans in any posture, lying ones too
+  jeanscv dog.gif                       dog.jeans.gif: the jeans follow the dog frame by frame
+  jeanscv clip.mp4 --format gif         clip.jeans.gif (MP4, MOV, WebM, MKV, GIF, animated WebP/PNG)
   jeanscv serve [FOLDER]                a local web page: drop a photo, click the subject
                                         (see 'jeanscv serve --help')
 
@@ -134,8 +136,9 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(["png", "jpg", "webp"]),
-    help="Output image format (default: photos keep theirs, RAW -> jpg, silhouettes -> png).",
+    type=click.Choice(["png", "jpg", "webp", "gif", "mp4"]),
+    help="Output format (default: photos keep theirs, RAW -> jpg, silhouettes -> png; clips: GIF -> gif, "
+    "videos -> mp4). gif, mp4 and webp convert clips; a still becomes a one-frame gif or mp4.",
 )
 @click.option("--overwrite", is_flag=True, help="Redo inputs whose outputs already exist.")
 @click.option("--json", "want_json", is_flag=True, help="Also write NAME.jeans.json: the fit report.")
@@ -251,6 +254,13 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     show_default=True,
     help="Refuse images larger than this.",
 )
+@click.option(
+    "--max-frames",
+    type=click.IntRange(1),
+    default=DEFAULTS.max_frames,
+    show_default=True,
+    help="Refuse clips with more frames than this.",
+)
 @click.option("--raw-half-size", is_flag=True, help="Decode RAW files at half size, for speed (default: full size).")
 @click.option(
     "--raw-full-size",
@@ -295,7 +305,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.version_option(__version__, "--version", prog_name="jeanscv", message="%(prog)s %(version)s")
 @click.pass_context
 def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
-    """Put jeans on the objects in PATH... (SVG or PNG silhouettes, photos, camera RAW).
+    """Put jeans on the objects in PATH... (SVG or PNG silhouettes, photos, camera RAW, clips).
 
     PATH may be files, folders (with -r, their subfolders too) and glob patterns.
     How would this thing wear jeans? (Pagurek's jalgorithm, SIGBOVIK 2023.)
@@ -357,6 +367,8 @@ def _main(
         return 2
 
     extras = tuple(name for name, wanted in (("json", want_json), ("svg", want_svg), ("gif", want_gif)) if wanted)
+    if want_gif and fmt == "gif":
+        raise _usage("--gif and --format gif would both write NAME.jeans.gif: choose one")
     found = collect(list(paths), recursive, output_dir, fmt, extras)
     single = found.total + len(found.problems) == 1
     if values["mask"] is not None and not single:

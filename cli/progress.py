@@ -103,7 +103,13 @@ class Progress:
                 self._write(f"{prefix} {outcome.input} -> {outcome.output} ({outcome.seconds:.1f} s)")
         if outcome.status == "ok" and outcome.info.get("note") and not self.quiet:
             self._write(f"jeanscv: {outcome.input}: note: {outcome.info['note']}")
-        if self.verbose and outcome.status == "ok" and outcome.info:
+        if self.verbose and outcome.status == "ok" and outcome.info.get("kind") == "clip":
+            info = outcome.info
+            self._write(
+                f"    clip: {info['frames']} frames, first frame's silhouette: {info['silhouette_method'] or 'none'}, "
+                f"{info['frames_without_jeans']} frames without jeans"
+            )
+        elif self.verbose and outcome.status == "ok" and outcome.info:
             info = outcome.info
             terms = " ".join(f"{k}={v:.4g}" for k, v in info.get("terms", {}).items())
             self._write(

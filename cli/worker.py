@@ -118,6 +118,7 @@ def picture(result, options: JeansOptions):
 
 def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> None:
     from jeanscv import pipeline
+    from jeanscv.io.clip import is_clip
     from jeanscv.io.write import atomic_write_bytes
     from jeanscv.subject.silhouettes import silhouette_contours
 
@@ -125,6 +126,9 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
     saved = saved_clicks(job, options)
     if saved is not None:
         options = options.replace(clicks=saved)
+    if is_clip(job.path):
+        _run_clip(job, options, targets, outcome)
+        return
     result = pipeline.apply_jeans(job.path, options)
     fit = result.fit
     outcome.info = {
@@ -147,7 +151,12 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
     # Everything is encoded before the first write, so a failure leaves no outputs.
     data: dict[str, bytes] = {}
     if "image" in targets:
-        data["image"] = encode_picture(targets["image"], picture(result, options), result)
+        if targets["image"].suffix.lower() in (".gif", ".mp4"):  # --format gif or mp4: a one-frame clip
+            from jeanscv.io.clip import clip_bytes
+
+            data["image"] = clip_bytes([picture(result, options)], targets["image"].suffix[1:].lower())
+        else:
+            data["image"] = encode_picture(targets["image"], picture(result, options), result)
     if "json" in targets:
         data["json"] = report_text(result, job.display, str(job.outputs["image"])).encode("utf-8")
     if "svg" in targets:
@@ -169,6 +178,53 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
         _ensure_folder(path.parent)
         atomic_write_bytes(path, payload)
         outcome.written.append(str(path))
+
+
+def _run_clip(job: Job, options: JeansOptions, targets: dict[str, Path], outcome: Outcome) -> None:
+    """A clip: its frames painted into ``NAME.jeans.EXT`` as they are decoded, and the
+    ``--json`` report with every frame's vertices. The clip is made whenever any of its
+    outputs is wanted (the report comes from the same run); SVG and GIF sidecars are
+    not made for clips."""
+    import json
+
+    from jeanscv.errors import JeansError
+    from jeanscv.io.clip import CLIP_FORMATS, ClipLimits
+    from jeanscv.io.write import atomic_write_bytes
+    from jeanscv.run.clips import write_jeans_clip
+
+    image = job.outputs["image"]
+    fmt = image.suffix[1:].lower()
+    if fmt not in CLIP_FORMATS:
+        raise JeansError(f"an animation cannot be written as {image.suffix}: use --format gif, mp4, webp or png")
+    _ensure_folder(image.parent)
+    decorate = None
+    if options.top or options.bottom or options.side_by_side:
+        from .extras import add_captions, side_by_side
+
+        def decorate(painted, original):
+            captioned = add_captions(painted, options.top, options.bottom)
+            return side_by_side(original, captioned) if options.side_by_side else captioned
+
+    limits = ClipLimits(max_frames=options.max_frames)
+    report = write_jeans_clip(job.path, image, options, fmt=fmt, limits=limits, decorate=decorate)
+    outcome.written.append(str(image))
+    frames = report["frames"]
+    first = next((obj for obj in frames[0]["objects"] if obj is not None), None) if frames else None
+    outcome.info = {
+        "kind": "clip",
+        "frames": report["frames_written"],
+        "fps": report["fps"],
+        "silhouette_method": first["method"] if first else "",
+        "frames_without_jeans": sum(all(obj is None for obj in frame["objects"]) for frame in frames),
+        "objects": [],
+    }
+    if "stopped" in report:
+        outcome.info["note"] = f"{report['stopped']}; the frames before it were written"
+    if "json" in targets:
+        text = json.dumps({"input": job.display, "output": str(image), **report}, sort_keys=True) + "\n"
+        _ensure_folder(targets["json"].parent)
+        atomic_write_bytes(targets["json"], text.encode("utf-8"))
+        outcome.written.append(str(targets["json"]))
 
 
 def _object_info(obj) -> dict:

@@ -32,6 +32,7 @@ _LAZY = {
     "fit": "jeanscv.pipeline",
     "composite": "jeanscv.paint.figures",
     "apply_jeans": "jeanscv.pipeline",
+    "apply_jeans_to_clip": "jeanscv.run.clips",
     "read_svg": "jeanscv.subject.silhouettes",
     "Silhouette": "jeanscv.subject.silhouettes",
     "JeansResult": "jeanscv.report",

@@ -65,7 +65,7 @@ class JeansOptions:
     captions, ``side_by_side`` and ``gif_frames`` shape the command's pictures.
 
     Decoding: ``max_pixels`` (larger images are refused), ``raw_half_size`` (RAW files
-    at half size, faster).
+    at half size, faster), ``max_frames`` (clips with more frames are refused).
     """
 
     # Fitting.
@@ -98,6 +98,7 @@ class JeansOptions:
     # Decoding.
     max_pixels: int = 100_000_000
     raw_half_size: bool = False
+    max_frames: int = 18_000
 
     def __post_init__(self) -> None:
         # Lists and other sequences of points are kept as a tuple, so options stay immutable.
@@ -115,6 +116,8 @@ class JeansOptions:
             raise JeansError(f"unknown backend {self.backend!r} (use {' or '.join(BACKENDS)})")
         if self.iterations < 0:
             raise JeansError("iterations must be >= 0")
+        if self.max_frames < 1:
+            raise JeansError("max_frames must be >= 1")
 
     def replace(self, **changes: Any) -> JeansOptions:
         """A copy with ``changes`` (option names as keywords); an unknown name is a TypeError."""

@@ -355,6 +355,46 @@ def run_load_mask(case: tuple[str, bytes]) -> object:
     return mask
 
 
+# ------------------------------------------------------------------------ clips
+
+
+def clip_seeds() -> dict[str, bytes]:
+    """Four-frame clips in every format jeanscv writes (and reads)."""
+    from jeanscv.io.clip import write_clip
+
+    frames = [_picture(24, 32, seed) for seed in range(4)]
+    seeds = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for fmt in ("gif", "mp4", "webp", "png"):
+            path = Path(folder) / f"clip.{fmt}"
+            write_clip(path, frames, fmt, fps=10.0)
+            seeds[path.name] = path.read_bytes()
+    return seeds
+
+
+_CLIP_SEEDS: dict[str, bytes] = {}
+
+
+def generate_clip_case(rng: random.Random) -> tuple[str, bytes]:
+    """``(name, bytes)``: a clip seed, mutated."""
+    if not _CLIP_SEEDS:
+        _CLIP_SEEDS.update(clip_seeds())
+    name = rng.choice(sorted(_CLIP_SEEDS))
+    return name, mutate_bytes(_CLIP_SEEDS[name], rng, tuple(_CLIP_SEEDS.values()))
+
+
+def run_clip(case: tuple[str, bytes]) -> object:
+    from jeanscv.io.clip import ClipLimits, ClipReader
+
+    name, data = case
+    limits = ClipLimits(max_frames=50, max_seconds=60, max_frame_pixels=FUZZ_MAX_PIXELS)
+    with ClipReader(_SCRATCH.write(name, data), limits) as reader:
+        for frame in reader.frames():
+            if frame.pixels.dtype != np.uint8 or frame.pixels.ndim != 3 or frame.pixels.shape[2] != 3:
+                raise ContractViolation(f"decoded to {frame.pixels.dtype} {frame.pixels.shape}")
+    return reader
+
+
 # ------------------------------------------------------------------------ SVG
 
 _NUMBER_TEXTS = ("0", "-0", "1e309", "-1e309", "1e-400", "nan", "inf", ".5.5", "1e", "--1", "1e38", "9" * 40, "+.e1")
@@ -784,6 +824,7 @@ TARGETS: dict[str, Target] = {
         Target("path_data", generate_path_case, run_flatten),
         Target("image", generate_image_case, run_load_image),
         Target("mask", generate_image_case, run_load_mask),
+        Target("clip", generate_clip_case, run_clip),
         Target("clicks", generate_clicks_case, run_clicks),
         Target("clicks_file", generate_clicks_case, run_read_clicks),
         Target("garment", generate_garment_case, run_garment),

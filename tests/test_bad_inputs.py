@@ -344,10 +344,12 @@ def test_16bit_grey_silhouette(tmp_path, run_cli):
     _figure_matches(tmp_path / "deep.jeans.png", shape)
 
 
-def test_animated_gif_uses_the_first_frame(tmp_path, run_cli):
+def test_animated_gif_becomes_a_clip_of_figures(tmp_path, run_cli):
+    """An animated GIF is a clip (tests/test_clips.py): a silhouette drawing's frames each
+    become the paper's figure of that frame's shape."""
     shape = _person()
     frames = [
-        Image.fromarray(np.where(np.roll(shape, 8 * k, axis=1), 0, 255).astype(np.uint8)).convert("P") for k in range(3)
+        Image.fromarray(np.where(np.roll(shape, 4 * k, axis=1), 0, 255).astype(np.uint8)).convert("P") for k in range(3)
     ]
     src = tmp_path / "walk.gif"
     frames[0].save(src, save_all=True, append_images=frames[1:], duration=100, loop=0)
@@ -355,7 +357,12 @@ def test_animated_gif_uses_the_first_frame(tmp_path, run_cli):
         assert im.n_frames == 3
     result = run_cli(src, *FAST, "-q")
     assert result.exit_code == 0 and result.stderr == ""
-    _figure_matches(tmp_path / "walk.jeans.png", shape)
+    _figure_matches(tmp_path / "walk.jeans.gif", shape)  # Pillow opens a GIF on its first frame
+    with Image.open(tmp_path / "walk.jeans.gif") as im:
+        assert im.n_frames == 3
+        im.seek(2)
+        rgb = np.asarray(im.convert("RGB")).astype(int)
+    assert int(((rgb.max(-1) < 60) & ~np.roll(shape, 8, axis=1)).sum()) == 0
 
 
 @pytest.mark.parametrize("kind", ["16-bit RGB PNG", "CMYK JPEG"])

@@ -27,6 +27,7 @@ EXAMPLES = {
     "path_data": 80,
     "image": 150,
     "mask": 60,
+    "clip": 40,
     "clicks": 50,
     "clicks_file": 40,
     "garment": 100,

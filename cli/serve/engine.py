@@ -419,10 +419,16 @@ def report_summary(photo: Photo, objects: list) -> dict:
 
 
 def folder_jobs(folder: Path) -> list[Job]:
-    """The folder's photos as the command line finds them (``jeanscv FOLDER``), in order."""
+    """The folder's photos as the command line finds them (``jeanscv FOLDER``), in order;
+    not its videos, which the page cannot show (a GIF opens on its first frame)."""
+    from jeanscv.io.clip_names import CLIP_EXTENSIONS
+
     from ..discover import collect
 
-    return [job for job in collect([str(folder)]).jobs if isinstance(job, Job)]
+    videos = CLIP_EXTENSIONS - {".gif"}
+    return [
+        job for job in collect([str(folder)]).jobs if isinstance(job, Job) and job.path.suffix.lower() not in videos
+    ]
 
 
 def saved_clicks(job: Job) -> Clicks | None:

@@ -7,14 +7,16 @@ the target in one step. Any failure removes the temporary file.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import re
 import secrets
 import stat
 import threading
-from collections.abc import Container
+from collections.abc import Container, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from PIL import Image
@@ -48,12 +50,22 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     that its writer is alive. A replaced file keeps its permission bits. Raises
     ``JeansError`` when the destination cannot be written.
     """
+    with atomic_file(path) as f:
+        f.write(data)
+
+
+@contextlib.contextmanager
+def atomic_file(path: str | Path) -> Iterator[BinaryIO]:
+    """A binary file, open for writing (and seeking), that becomes ``path`` when the
+    block ends without an exception; on any exception it is removed and ``path`` is
+    untouched. For outputs written piece by piece (a clip's frames, as they are
+    encoded); the guarantees are those of :func:`atomic_write_bytes`."""
     path = Path(path)
     folder = path.parent
     tmp, fd = _create_temporary(path)
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
+        with os.fdopen(fd, "w+b") as f:
+            yield f
             f.flush()
             os.fsync(f.fileno())
             try:
@@ -304,19 +316,28 @@ _KEEP_EXTENSION = {
 }
 
 
-def output_extension(input_path: str | os.PathLike, fmt: str | None = None) -> str:
+def output_extension(input_path: str | os.PathLike, fmt: str | None = None, clips: bool = False) -> str:
     """The extension (with dot) of the picture written for ``input_path``.
 
     Decided from the name alone, so that a resumed run finds the outputs of the
     previous one without decoding anything: SVG -> ``.png`` (the paper figure),
     RAW -> ``.jpg``, JPEG/PNG/WebP/TIFF keep theirs, other formats -> ``.png``;
-    ``fmt`` (``png``/``jpg``/``webp``) overrides all.
+    ``fmt`` (``png``/``jpg``/``webp``) overrides all. With ``clips`` (a writer of
+    clips, the command line), clips keep theirs: GIF -> ``.gif``, videos -> ``.mp4``,
+    and ``fmt`` may be ``gif`` or ``mp4`` too; a clip named as one is never a ``jpg`` (it
+    keeps its own format; ``png`` is an animated PNG), and a still with ``gif`` or ``mp4``
+    becomes a one-frame clip. Without ``clips`` (a writer of still pictures: the web
+    page, the Dask runner), a GIF's first frame becomes a ``.png``.
     """
+    from .clip_names import CLIP_EXTENSIONS, clip_format
+
+    suffix = Path(input_path).suffix.lower()
+    if clips and suffix in CLIP_EXTENSIONS:
+        return "." + clip_format(input_path, fmt)
     if fmt:
         return "." + fmt.lower().lstrip(".")
     from .image import RAW_EXTENSIONS
 
-    suffix = Path(input_path).suffix.lower()
     if suffix in RAW_EXTENSIONS:
         return ".jpg"
     return _KEEP_EXTENSION.get(suffix, ".png")

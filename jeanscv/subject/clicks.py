@@ -30,6 +30,10 @@ written as version 1, which older jeanscv reads; both versions are read. ``image
 records the size the clicks were made on; a file whose size does not match the photo it
 is replayed on is refused (the clicks would land on the wrong things).
 ``image`` may be omitted by hand-written files: then only the bounds are checked.
+
+For a clip, ``objects`` are the first frame's clicks, and ``frames`` may add key frames
+where the subject changes: ``"frames": [{"frame": 45, "objects": [...]}]``, each frame's
+objects as above (read by :func:`key_frames`; older jeanscv keeps the key as it is).
 """
 
 from __future__ import annotations
@@ -266,6 +270,32 @@ def parse_clicks(data) -> Clicks:
             raise JeansError(f"object {index + 1}: {exc}") from None
     extra = {k: v for k, v in data.items() if k not in ("format", "version", "image", "objects")}
     return Clicks(tuple(parsed), image_size, extra)
+
+
+#: Most key frames a clicks file may hold.
+MAX_KEY_FRAMES = 256
+
+
+def key_frames(clicks: Clicks) -> dict[int, Clicks]:
+    """A clip's key frames: frame index (from 1; frame 0's clicks are ``clicks.objects``)
+    -> that frame's :class:`Clicks` (the file's image size), from the file's ``frames``;
+    JeansError saying what is wrong."""
+    entries = clicks.extra.get("frames", [])
+    if not isinstance(entries, list) or len(entries) > MAX_KEY_FRAMES:
+        raise JeansError(f'"frames" must be a list of at most {MAX_KEY_FRAMES} {{"frame": N, "objects": [...]}}')
+    found: dict[int, Clicks] = {}
+    for entry in entries:
+        index = entry.get("frame") if isinstance(entry, dict) else None
+        if not isinstance(index, int) or isinstance(index, bool) or index < 1:
+            raise JeansError('each of "frames" needs "frame": a whole number from 1 (frame 0 is "objects")')
+        if index in found:
+            raise JeansError(f"key frame {index} is given twice")
+        try:
+            found[index] = parse_clicks({"format": FORMAT, "version": VERSION, "objects": entry.get("objects")})
+        except JeansError as exc:
+            raise JeansError(f"key frame {index}: {exc}") from None
+        found[index] = Clicks(found[index].objects, clicks.image_size)
+    return found
 
 
 def loads_clicks(text: str | bytes) -> Clicks:

@@ -1,0 +1,366 @@
+"""Jeans on a clip, frame by frame: :func:`apply_jeans_to_clip` (a generator of frames)
+and :func:`write_jeans_clip` (a clip file in, a clip file and a report out).
+
+A thin layer over the still-photo pipeline: the first frame is
+:func:`jeanscv.pipeline.apply_jeans` itself (automatic finding, or the clicks, box or
+mask of ``options``), so its picture is the photo's. Each later frame takes its masks from
+:class:`jeanscv.subject.follow.Follower` (tracking and an edge re-segmentation), frames
+them as a photo's silhouettes are framed, carries the previous frame's jeans by the
+object's motion and settles them with :func:`jeanscv.fitting.follow.refit`, and paints them
+with the photo's :func:`jeanscv.paint.figures.composite`. A scene cut finds the subject
+afresh (as the first frame, automatically); an object that leaves the frame loses its
+jeans, and is looked for again (automatically, once a second of clip) until it comes back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import JeansError
+from ..geometry import apply_affine
+from ..io.clip import ClipFrame, ClipLimits, ClipReader, iter_frames
+from ..options import JeansOptions
+from ..report import FittedObject
+from ..subject.silhouettes import Silhouette
+
+#: Seconds of clip between two looks for a lost subject (a full automatic segmentation).
+LOOK_AGAIN_SECONDS = 1.0
+#: Most Bhattacharyya distance between a found object's colours and the lost one's for
+#: the found one to be taken as the lost subject come back.
+SAME_SUBJECT = 0.6
+
+
+@dataclass
+class ClipFrameResult:
+    """One frame of :func:`apply_jeans_to_clip`: the picture and the objects that wear jeans.
+
+    ``objects``: one entry per followed object, None where it is lost (out of the frame);
+    ``event``: ``start`` (the first frame, the still-photo pipeline), ``follow``, ``cut`` (a
+    scene cut: found afresh), ``key`` (a key frame of the clicks file: found from its
+    clicks), ``found`` (a lost subject found again) or ``lost`` (no object wears jeans on
+    this frame); ``original``: the frame as decoded.
+    """
+
+    index: int
+    time: float
+    duration: float
+    image: np.ndarray
+    objects: list[FittedObject | None]
+    event: str
+    original: np.ndarray | None = None  # the frame as decoded
+
+    def report(self) -> dict:
+        """This frame's entry in the clip report: per object its image vertices, box,
+        posture and objective (None where lost)."""
+        from ..fitting.posture import posture_name, tilt_degrees
+        from ..subject.silhouettes import box_of
+
+        entries: list[dict | None] = []
+        for obj in self.objects:
+            if obj is None:
+                entries.append(None)
+                continue
+            vertices = obj.silhouette.framing.to_image(obj.fit.vertices)
+            tilt = tilt_degrees(vertices, obj.fit.garment)
+            entries.append(
+                {
+                    "vertices_image": np.round(vertices, 2).tolist(),
+                    "box": list(box_of(obj.silhouette)),
+                    "method": obj.silhouette.method,
+                    "objective": float(f"{obj.fit.objective:.6g}"),
+                    "tilt_degrees": round(tilt, 2),
+                    "posture": posture_name(tilt),
+                }
+            )
+        return {"frame": self.index, "time": round(self.time, 4), "event": self.event, "objects": entries}
+
+
+@dataclass
+class _Track:
+    """One followed object: what its last frame wore (None once lost)."""
+
+    fitted: FittedObject | None
+    first: FittedObject  # as found: its fit's preset and garment serve every frame
+
+
+def _framed(mask: np.ndarray, method: str) -> Silhouette:
+    """A followed mask as a photo's object is framed (``details['box']`` like a photo's)."""
+    from ..geometry import mask_box
+    from ..subject.framing import frame_mask
+
+    canvas, framing = frame_mask(mask)
+    return Silhouette(mask, canvas, framing, method, None, {"box": list(mask_box(mask))})
+
+
+def _automatic(options: JeansOptions) -> JeansOptions:
+    """The options without anything that names frame 0's pixels: for a frame found afresh."""
+    return options.replace(points=(), background_points=(), box=None, clicks=None, mask=None)
+
+
+class _ClipRun:
+    """The state of one clip's run: the follower, the tracks, the options."""
+
+    def __init__(self, options: JeansOptions) -> None:
+        from ..device import resolve_backend, resolve_device
+        from ..subject.follow import Follower
+
+        self.options = options
+        self.device = resolve_device(options.device)
+        self.backend = resolve_backend(options.backend, self.device)
+        self.follower = Follower()
+        self.tracks: list[_Track] = []
+        self.kind = "photo"
+        self.looked_at = -np.inf
+        self.missed = ""  # why the last automatic look found nothing
+
+    # ------------------------------------------------------------ finding afresh
+    def find(self, frame: ClipFrame, options: JeansOptions, event: str) -> ClipFrameResult:
+        """The still-photo pipeline on ``frame``: its picture, and new tracks from its objects."""
+        from ..pipeline import apply_jeans
+
+        result = apply_jeans(frame.pixels, options)
+        self.kind = result.kind
+        self.tracks = [_Track(obj, obj) for obj in result.objects]
+        self.follower.start(frame.pixels, [obj.silhouette.mask for obj in result.objects])
+        return ClipFrameResult(frame.index, frame.time, frame.duration, result.image, list(result.objects), event)
+
+    def start(self, frame: ClipFrame, options: JeansOptions, event: str = "start") -> ClipFrameResult:
+        """The first frame, or a frame while nothing has been found yet: the still-photo
+        pipeline. With the subject given (clicks, a box, a mask) its failure is the clip's;
+        found automatically, a frame with nothing to find goes by without jeans, and the
+        next look is :data:`LOOK_AGAIN_SECONDS` later."""
+        given = options.points or options.box is not None or options.clicks is not None or options.mask is not None
+        if frame.index == 0 and given:
+            return self.find(frame, options, "start")
+        if frame.time - self.looked_at < LOOK_AGAIN_SECONDS:
+            return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [], "lost")
+        self.looked_at = frame.time
+        try:
+            return self.find(frame, options if frame.index == 0 else _automatic(options), event)
+        except JeansError as exc:
+            self.missed = str(exc)
+            self.tracks = []  # nothing to follow: the next frames look again
+            return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [], "lost")
+
+    def look_again(self, frame: ClipFrame) -> ClipFrameResult | None:
+        """Every :data:`LOOK_AGAIN_SECONDS` while every object is lost: the subject found
+        automatically, if it looks like the one that left; else None."""
+        if frame.time - self.looked_at < LOOK_AGAIN_SECONDS:
+            return None
+        self.looked_at = frame.time
+        lost_models = [obj.foreground for obj in self.follower.objects]
+        previous = self.tracks, self.follower.objects
+        try:
+            found = self.find(frame, _automatic(self.options), "found")
+        except JeansError:
+            return None
+        import cv2
+
+        # The colours of what was found against those of what was lost.
+        models = [obj.foreground for obj in self.follower.objects]
+        same = not lost_models or any(
+            cv2.compareHist(lost.astype(np.float32), new.astype(np.float32), cv2.HISTCMP_BHATTACHARYYA) < SAME_SUBJECT
+            for lost in lost_models
+            for new in models
+        )
+        if not same:
+            self.tracks, self.follower.objects = previous
+            return None
+        return found
+
+    # ------------------------------------------------------------ following
+    def follow(self, frame: ClipFrame) -> ClipFrameResult:
+        """A frame after the first: its masks followed, its jeans carried and settled."""
+        if self.kind == "silhouette":
+            return self._follow_drawing(frame)
+        step = self.follower.step(frame.pixels)
+        if step.cut:  # found afresh; a scene with nothing to find goes by without jeans
+            self.looked_at = -np.inf
+            return self.start(frame, _automatic(self.options), "cut")
+        image = frame.pixels
+        objects: list[FittedObject | None] = []
+        for index, (track, mask, motion) in enumerate(zip(self.tracks, step.masks, step.motions)):
+            if mask is None or track.fitted is None or not mask.any():
+                track.fitted = None
+                objects.append(None)
+                continue
+            silhouette = _framed(mask, "follow")
+            before = track.fitted.silhouette.framing.to_image(track.fitted.fit.vertices)
+            carried = apply_affine(motion, before) if motion is not None else before
+            track.fitted = self._settle(track, silhouette, carried)
+            objects.append(track.fitted)
+            image = self._paint(image, track.fitted, index)
+        if all(obj is None for obj in objects):
+            found = self.look_again(frame)
+            if found is not None:
+                return found
+            return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, objects, "lost")
+        return ClipFrameResult(frame.index, frame.time, frame.duration, image, objects, "follow")
+
+    def _settle(self, track: _Track, silhouette: Silhouette, carried: np.ndarray) -> FittedObject:
+        """The garment ``carried`` (image pixels) settled on ``silhouette``."""
+        from ..fitting.follow import refit
+
+        first = track.first.fit
+        start = silhouette.framing.to_canvas(carried)
+        vertices, objective, terms = refit(
+            silhouette.canvas, start, first.preset, first.garment, backend=self.backend, device=self.device
+        )
+        fit = dataclasses.replace(
+            first,
+            vertices=vertices,
+            vertices_image=silhouette.framing.to_image(vertices),
+            objective=objective,
+            terms=terms,
+            history=first.history[:0],
+            trajectory=vertices[None],
+            seconds=0.0,
+        )
+        return FittedObject(silhouette, fit)
+
+    def _paint(self, image: np.ndarray, fitted: FittedObject, index: int) -> np.ndarray:
+        from ..paint.figures import composite
+
+        options = self.options
+        return composite(
+            image, fitted.fit, fitted.silhouette, style=options.style, clip=options.clip, seed=options.seed + index
+        )
+
+    def _follow_drawing(self, frame: ClipFrame) -> ClipFrameResult:
+        """A silhouette drawing's clip: each frame's shape is exact; only the fit follows."""
+        from ..paint.figures import figure
+        from ..subject.drawing import silhouette_from_drawing
+        from ..subject.silhouettes import silhouette_from_alpha
+
+        alpha = silhouette_from_drawing(frame.pixels)
+        track = self.tracks[0]
+        if alpha is None or alpha.sum() < 1.0 or track.fitted is None:
+            track.fitted = None
+            return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, [None], "lost")
+        silhouette = silhouette_from_alpha(alpha, "drawing")
+        track.fitted = self._settle(
+            track, silhouette, track.fitted.silhouette.framing.to_image(track.fitted.fit.vertices)
+        )
+        image = figure(silhouette, track.fitted.fit)
+        return ClipFrameResult(frame.index, frame.time, frame.duration, image, [track.fitted], "follow")
+
+
+def apply_jeans_to_clip(
+    source: str | os.PathLike | ClipReader | Iterable[np.ndarray | ClipFrame],
+    options: JeansOptions | None = None,
+    *,
+    fps: float = 25.0,
+    limits: ClipLimits | None = None,
+    **overrides: Any,
+) -> Iterator[ClipFrameResult]:
+    """Jeans on every frame of a clip, as the frames come (a generator).
+
+    ``source``: a clip file (GIF, animated WebP/PNG, MP4/MOV/WebM/MKV), an open
+    :class:`~jeanscv.io.clip.ClipReader`, or any iterable of ``(H, W, 3)`` uint8 frames
+    (``fps`` apart) or :class:`~jeanscv.io.clip.ClipFrame` s: a generator you feed your
+    own frames to. ``options`` and ``overrides`` as for :func:`jeanscv.pipeline.apply_jeans`;
+    clicks, a box or a mask refer to the first frame; a clicks file's ``frames`` add key
+    frames (:func:`jeanscv.subject.clicks.key_frames`), where the subject is found afresh
+    from their clicks. ``limits``: the decoding caps for a file.
+    Yields a :class:`ClipFrameResult` per frame; the first frame's picture is
+    ``apply_jeans(first_frame, options).image``.
+    """
+    options = (options or JeansOptions()).replace(**overrides)
+    keys = {}
+    if options.clicks is not None:
+        options, keys = _with_key_frames(options)
+    if isinstance(source, (str, os.PathLike)):
+        with ClipReader(source, limits) as reader:
+            yield from apply_jeans_to_clip(reader, options, fps=fps)
+        return
+    frames = source.frames() if isinstance(source, ClipReader) else iter_frames(source, fps)
+    run = _ClipRun(options)
+    found = False
+    for frame in frames:
+        if frame.index in keys:
+            result = run.find(frame, _automatic(options).replace(clicks=keys[frame.index]), "key")
+        elif frame.index == 0 or not run.tracks:
+            result = run.start(frame, options)
+        else:
+            result = run.follow(frame)
+        found = found or any(obj is not None for obj in result.objects)
+        result.original = frame.pixels
+        yield result
+    if not found:  # as a photo with nothing in it: the clip fails (a file writer keeps nothing)
+        raise JeansError(f"{run.missed or 'no object found'} on any frame")
+
+
+def _with_key_frames(options: JeansOptions) -> tuple[JeansOptions, dict]:
+    """The options with their clicks file read, and its key frames (frame -> Clicks)."""
+    from ..subject.clicks import Clicks, key_frames, read_clicks
+
+    clicks = options.clicks
+    if isinstance(clicks, (str, os.PathLike)):
+        try:
+            read = read_clicks(clicks)
+            keys = key_frames(read)
+        except JeansError as exc:
+            raise JeansError(f"clicks file {os.path.basename(clicks)}: {exc}") from None
+        return options.replace(clicks=read), keys
+    return options, key_frames(clicks) if isinstance(clicks, Clicks) else {}
+
+
+def write_jeans_clip(
+    source: str | os.PathLike,
+    output: str | os.PathLike,
+    options: JeansOptions | None = None,
+    *,
+    fmt: str | None = None,
+    limits: ClipLimits | None = None,
+    on_frame=None,
+    decorate=None,
+) -> dict:
+    """Jeans on the clip ``source``, written to ``output`` as ``fmt`` (default: from
+    ``output``'s extension) with the source's timing, looping and audio, atomically.
+
+    ``on_frame(ClipFrameResult)`` is called after each frame (progress);
+    ``decorate(image, original) -> image`` changes each frame before it is encoded (the
+    command's captions and side by side). Returns the clip
+    report: the clip's size, frames, fps and duration, why decoding stopped early if it did
+    (``stopped``), and ``frames``, each frame's :meth:`ClipFrameResult.report`.
+    """
+    from ..io.clip import clip_format, write_clip
+
+    options = options or JeansOptions()
+    fmt = fmt or clip_format(output)
+    frames: list[dict] = []
+    with ClipReader(source, limits, keep_audio=fmt == "mp4") as reader:
+
+        def painted() -> Iterator[ClipFrame]:
+            for result in apply_jeans_to_clip(reader, options):
+                frames.append(result.report())
+                if on_frame is not None:
+                    on_frame(result)
+                image = result.image if decorate is None else decorate(result.image, result.original)
+                yield ClipFrame(result.index, result.time, result.duration, image)
+
+        write_clip(output, painted(), fmt, fps=reader.info.fps, loop=reader.info.loop, reader=reader)
+        info = reader.info
+        stopped = reader.stopped
+    report = {
+        "kind": "clip",
+        "format": fmt,
+        "size": list(info.size),
+        "fps": info.fps,
+        "frames_written": len(frames),
+        "seconds": round(frames[-1]["time"], 4) if frames else 0.0,
+        "audio": info.audio and fmt == "mp4",
+        "frames": frames,
+    }
+    if stopped:
+        report["stopped"] = stopped
+    return report
+
+
+__all__ = ["ClipFrameResult", "apply_jeans_to_clip", "write_jeans_clip"]
