@@ -102,7 +102,7 @@ def measure_photo(path: Path, subject: str, fit: bool) -> tuple[dict, list[np.nd
     reference = reference_mask(path)
     start = time.process_time()
     try:
-        silhouette = jeanscv.extract_silhouette(pixels, **({} if subject == "auto" else {"subject": subject}))
+        silhouette = jeanscv.extract_silhouette(pixels, subject=subject)
         found, method = silhouette.mask >= 0.5, silhouette.method
     except jeanscv.JeansError as error:
         silhouette, found, method = None, np.zeros_like(reference), f"error: {error}"

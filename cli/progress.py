@@ -38,6 +38,8 @@ class Progress:
         self.tty = (self.stream.isatty() if tty is None else tty) and not quiet
         self.done = 0
         self.counts = {"ok": 0, "failed": 0, "skipped": 0}
+        self.unsure = 0  # finished photos whose subject may be the wrong thing
+        self.serve_hint = "jeanscv serve FOLDER"  # how to look at them (the command sets the folder)
         self.began = time.perf_counter()
         self._work_seconds = 0.0
         self._worked = 0
@@ -101,6 +103,8 @@ class Progress:
                 self._write(f"{prefix} {outcome.input}: skipped ({outcome.error})")
             else:
                 self._write(f"{prefix} {outcome.input} -> {outcome.output} ({outcome.seconds:.1f} s)")
+        if outcome.status == "ok" and outcome.info.get("uncertain"):
+            self.unsure += 1
         if outcome.status == "ok" and outcome.info.get("note") and not self.quiet:
             self._write(f"jeanscv: {outcome.input}: note: {outcome.info['note']}")
         if self.verbose and outcome.status == "ok" and outcome.info:
@@ -139,7 +143,9 @@ class Progress:
             self._status = ""
 
     def summary(self, note: str = "") -> str:
-        """``N ok, N failed, N skipped in T s`` (printed unless quiet)."""
+        """``N ok, N failed, N skipped in T s`` (printed unless quiet), and on a second
+        line how many may have the wrong subject, when any (always printed: it says
+        what to look at)."""
         self.close()
         c = self.counts
         line = f"{c['ok']} ok, {c['failed']} failed, {c['skipped']} skipped in {time.perf_counter() - self.began:.1f} s"
@@ -147,4 +153,10 @@ class Progress:
             line += f" ({note})"
         if not self.quiet:
             self._write(line)
+        if self.unsure:
+            unsure = f"jeanscv: {self.unsure} of {c['ok']} may have the wrong subject"
+            if c["ok"] > 1:
+                unsure += f": `{self.serve_hint}` shows them first"
+            self._write(unsure)
+            line += "\n" + unsure
         return line

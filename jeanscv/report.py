@@ -19,8 +19,10 @@ if TYPE_CHECKING:  # decoding imports Pillow; a result only holds what it decode
 
 
 #: The auto segmentation's ``details`` that the report gives as ``subject``: the winning
-#: hypothesis, why it won, its mean IoU with the others and whether that is under half.
-SUBJECT_KEYS = ("chosen", "reason", "consensus", "uncertain")
+#: hypothesis, why it won, its mean IoU with the others, the subject asked for
+#: (``subject``: auto, animal, person, object) and the kind found, whether it may be the
+#: wrong thing (``uncertain``) and why (``doubts``).
+SUBJECT_KEYS = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts")
 
 
 @dataclass
@@ -111,7 +113,7 @@ class JeansResult:
             "objects": entries,
             "seconds": round(fit_result.seconds, 3),
         }
-        # Why auto segmentation took this subject, and whether its hypotheses agreed.
+        # Why auto segmentation took this subject, and whether it may be the wrong thing.
         subject = {key: self.silhouette.details[key] for key in SUBJECT_KEYS if key in self.silhouette.details}
         if subject:
             report["subject"] = subject

@@ -492,3 +492,33 @@ def two_objects(seed: int = 2023, width: int = 800, height: int = 500) -> MultiP
     foreground = np.where(owner[..., None], coat, fur)
     image = compose(owner | dog, foreground, ground, rng)
     return MultiPhoto("two_objects", image, (owner, dog))
+
+
+def pet_beside_owner(seed: int = 2023, width: int = 800, height: int = 500) -> MultiPhoto:
+    """A pet on a sofa beside its owner: an animal-textured blob (cat fur) lying on a
+    plain sofa-coloured seat that fills the lower part of the frame, and a standing
+    person-shaped figure (the zoo's ``person``, plainly dressed) beside it, before a
+    plain wall. ``masks``: (person, animal). Needs the chelsea texture (bundled with
+    scikit-image)."""
+    from testkit.synthetic import ZOO
+
+    rng = np.random.default_rng([seed, 30])
+    owner = _place(ZOO["person"]() >= 0.5, height, width, (0.27, 0.52), 0.8, False)
+    pet = blob_mask(height, width, rng, center=(0.66, 0.62), size=0.36, lobes=4)
+    rows = np.arange(height)[:, None]
+    sofa = np.broadcast_to(rows >= 0.5 * height, (height, width))
+    wall = np.empty((height, width, 3), np.float32)
+    wall[:] = (214, 206, 190)
+    wall[sofa] = (150, 72, 60)  # a plain red-brown seat
+    wall += rng.normal(0.0, 3.0, wall.shape).astype(np.float32)  # upholstery grain
+    coat = np.empty_like(wall)
+    coat[:] = (52, 64, 110)  # plain blue clothes
+    # The coat at the photo's own scale (not blown up to the frame): fine fur.
+    rows, cols = np.nonzero(pet)
+    y0, x0 = rows.min(), cols.min()
+    patch = texture("chelsea", rows.max() + 1 - y0, cols.max() + 1 - x0, rng)
+    fur = np.zeros_like(coat)
+    fur[y0 : rows.max() + 1, x0 : cols.max() + 1] = patch
+    foreground = np.where(pet[..., None], fur, coat)
+    image = compose(owner | pet, foreground, np.clip(wall, 0, 255).astype(np.uint8), rng)
+    return MultiPhoto("pet_beside_owner", image, (owner, pet))

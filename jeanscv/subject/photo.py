@@ -38,12 +38,14 @@ import copy
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from jeanscv.errors import JeansError
-from jeanscv.options import SILHOUETTE_METHODS
+from jeanscv.options import SILHOUETTE_METHODS, SUBJECTS
 
 from .grabcut import HYPOTHESIS_ITERATIONS, grabcut, grabcut_coarse_best, grabcut_or_none, refine
 from .masks import (
@@ -62,6 +64,9 @@ from .masks import (
     shape_for,
 )
 from .scene import Scene, rgb_to_lab
+
+if TYPE_CHECKING:  # the kind cues load OpenCV's people detector, on first use
+    from .kinds import KindCues
 
 #: :func:`segment`'s methods: the named ones, and ``mask`` (a given mask, cleaned).
 METHODS = (*SILHOUETTE_METHODS, "mask")
@@ -281,6 +286,14 @@ class PreparedScene:
                 mask.flags.writeable = False
         return cls(rgb, scene, found, "", details)
 
+    @cached_property
+    def cues(self) -> KindCues:
+        """What kind of thing the candidates are (:mod:`jeanscv.subject.kinds`), each
+        cue computed on first use."""
+        from .kinds import KindCues
+
+        return KindCues(self.scene.rgb, self.rgb)
+
     @property
     def nbytes(self) -> int:
         """About the memory it holds: the copy, the scene's planes (measured: 23 times
@@ -320,11 +333,15 @@ class SharedHypotheses:
         return 0 if held is None else held.nbytes
 
 
-def _auto(rgb: np.ndarray, prepared: PreparedScene, details: dict) -> tuple[np.ndarray, str]:
+def _auto(
+    rgb: np.ndarray, prepared: PreparedScene, details: dict, subject: str = "auto", several: bool = False
+) -> tuple[np.ndarray, str]:
     """Every hypothesis at coarse resolution, the consensus pick
-    (:mod:`jeanscv.subject.consensus`) at working resolution: the threshold split as
-    it is, a GrabCut hypothesis refined along its boundary."""
+    (:mod:`jeanscv.subject.consensus`), then the ``subject`` choice among its pieces
+    (:func:`jeanscv.subject.kinds.choose_kind`), at working resolution: the threshold
+    split as it is, a GrabCut hypothesis or a chosen piece refined along its boundary."""
     from .consensus import choose
+    from .kinds import choose_kind
 
     details.update(copy.deepcopy(prepared.details))
     found, scene = prepared.found, prepared.scene
@@ -349,14 +366,28 @@ def _auto(rgb: np.ndarray, prepared: PreparedScene, details: dict) -> tuple[np.n
     }
     details["chosen"] = winner
     details["consensus"] = round(best.consensus, 4)
-    details["uncertain"] = best.uncertain
     bands = [c.name for c in ranked if c.band]
-    details["reason"] = (
+    reason = (
         f"{winner} agrees most with the other {len(ranked) - len(bands) - 1} hypotheses (mean IoU {best.consensus:.2f}) "
         f"along strong colour edges (contrast {best.contrast:.2f}; border-colour agreement {best.agreement:.2f})"
         + (f"; left out as horizon bands across the frame: {', '.join(bands)}" if bands else "")
-        + ("; the hypotheses mostly disagree, so the subject is uncertain" if best.uncertain else "")
     )
+    kind = choose_kind(prepared.cues, [c for c in ranked if not c.band], winner, subject, several)
+    details["subject"], details["kind"] = subject, kind.kind
+    doubts = list(best.doubts)
+    if kind.pieces:
+        source = next(c for c in ranked if c.name == kind.pieces[0].source)
+        doubts = list(source.doubts)
+        details["pieces"] = [piece.summary() for piece in kind.pieces]
+    if kind.reason:
+        reason += f"; {kind.reason}"
+    if not kind.found:
+        doubts.insert(0, f"no {subject} found")
+    details["uncertain"] = bool(doubts)
+    details["doubts"] = doubts
+    details["reason"] = reason + ("; unsure: " + ", ".join(doubts) if doubts else "")
+    if kind.pieces and not np.array_equal(kind.mask, usable[winner]):
+        return refine(rgb, kind.mask, scene, "colour", source_width=scene.hypothesis_size[0]), "grabcut"
     if winner == "threshold":
         return found.threshold_mask, "threshold"
     variant = found.grabcut_variant if winner == "grabcut" else "colour"
@@ -404,6 +435,8 @@ def segment(
     mask: np.ndarray | None = None,
     working_size: int = 640,
     shared: SharedHypotheses | None = None,
+    subject: str = "auto",
+    several: bool = False,
 ) -> Segmentation:
     """Segment the main object of ``image`` ((H, W, 3) RGB or (H, W, 4) RGBA uint8).
 
@@ -419,7 +452,12 @@ def segment(
     Work happens at ``working_size`` (long side, pixels); the mask is upsampled, with
     a given alpha or mask deciding the boundary band at full resolution. ``shared``:
     auto's hypotheses, cut once for this call and a click session of the same photo
-    (:class:`SharedHypotheses`); the result is the same.
+    (:class:`SharedHypotheses`); the result is the same. ``subject`` (auto only): what
+    to find, ``auto`` (an animal beside a person rather than the person), ``animal``,
+    ``person`` or ``object`` (the most salient thing, whatever it is); ``several``:
+    every animal found rather than the most prominent one (``--objects all``). See
+    :mod:`jeanscv.subject.kinds`; ``details`` say which ``kind`` was found and whether
+    the subject is ``uncertain`` (with the ``doubts``).
 
     Returns a :class:`Segmentation` at the input's resolution. Raises JeansError for bad
     input, for no plausible object (empty or under 0.5% of the image) and, for photo
@@ -429,6 +467,8 @@ def segment(
     of all of it (the user said so).
     """
     arguments = _check_arguments(method, image, threshold, rect, mask, working_size)
+    if subject not in SUBJECTS:
+        raise JeansError(f"unknown subject {subject!r} (use {', '.join(SUBJECTS)})")
     height, width = arguments.rgb.shape[:2]
     size = shape_for((height, width), int(working_size))
     details: dict = {"working_shape": (size[1], size[0])}
@@ -441,7 +481,9 @@ def segment(
     else:
         rgb = downscale(arguments.rgb, size)
         factor = width / size[0]
-        working, used = _segment_photo(rgb, method, arguments.threshold, arguments.rect, factor, details, shared)
+        working, used = _segment_photo(
+            rgb, method, arguments.threshold, arguments.rect, factor, details, shared, subject, several
+        )
     _check_area(working, photo, details)
     full = _full_resolution(working, given, size, (width, height))
     contour = outer_contour(working, (width / size[0], height / size[1]))
@@ -557,13 +599,16 @@ def _segment_photo(
     factor: float,
     details: dict,
     shared: SharedHypotheses | None = None,
+    subject: str = "auto",
+    several: bool = False,
 ) -> tuple[np.ndarray, str]:
     """threshold / grabcut / auto on the working-size RGB; returns (clean mask, method).
 
-    auto weighs every hypothesis by consensus (:func:`_auto`); ``shared`` may hold them.
+    auto weighs every hypothesis by consensus, then takes the ``subject`` asked for
+    (:func:`_auto`); ``shared`` may hold the hypotheses.
     """
     if method == "auto":
-        return _auto(rgb, (shared or SharedHypotheses()).of(rgb), details)
+        return _auto(rgb, (shared or SharedHypotheses()).of(rgb), details, subject, several)
     scene = Scene(rgb)
     if method == "threshold":
         mask, info = _threshold(rgb, threshold, scene)
