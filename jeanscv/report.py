@@ -12,17 +12,10 @@ from .fitting.checks import rule_report
 from .fitting.fitter import FitResult
 from .fitting.posture import posture_name, tilt_degrees
 from .geometry import CANVAS_SIZE
-from .subject.silhouettes import Silhouette, box_of
+from .subject.silhouettes import SUBJECT_KEYS, Silhouette, box_of
 
 if TYPE_CHECKING:  # decoding imports Pillow; a result only holds what it decoded
     from .io.image import LoadedImage
-
-
-#: The auto segmentation's ``details`` that the report gives as ``subject``: the winning
-#: hypothesis, why it won, its mean IoU with the others, the subject asked for
-#: (``subject``: auto, animal, person, object) and the kind found, whether it may be the
-#: wrong thing (``uncertain``) and why (``doubts``).
-SUBJECT_KEYS = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts")
 
 
 @dataclass

@@ -208,3 +208,15 @@ def test_folder_listing_flags_the_unsure_once_known(make_client, tmp_path):
     for item in items:
         assert client.post(item["thumb"]).status_code == 200
     assert [item["uncertain"] for item in client.get("/api/folder").json()["items"]] == [True, False]
+
+
+def test_two_pets_on_a_sofa_one_pair_or_a_pair_each():
+    from testkit.synthetic_photos import two_pets_on_sofa
+
+    photo = two_pets_on_sofa()
+    left, right = photo.masks
+    (one,) = jeanscv.extract_silhouettes(photo.image)
+    assert one.details["kind"] == "animal" and iou(one.mask >= 0.5, left) >= 0.9  # the larger one
+    every = jeanscv.extract_silhouettes(photo.image, objects="all")
+    assert [round(iou(s.mask >= 0.5, m), 1) >= 0.9 for s, m in zip(every, (left, right))] == [True, True]
+    assert all(s.details["subject"] == "auto" and s.details["uncertain"] is False for s in every)

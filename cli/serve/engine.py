@@ -412,6 +412,7 @@ def report_summary(photo: Photo, objects: list) -> dict:
         "method": first.silhouette.method,
         "objective": round(float(first.fit.objective), 4),
         "uncertain": bool(details.get("uncertain", False)),
+        "kind": details.get("kind", ""),  # what automatic finding took it for (animal, person, object)
     }
     return summary
 

@@ -11,7 +11,7 @@ from ..errors import JeansError
 from ..geometry import mask_box
 from ..options import OBJECTS
 from .framing import frame_mask
-from .silhouettes import Silhouette
+from .silhouettes import SUBJECT_KEYS, Silhouette
 from .silhouettes import box_of as _box_of
 
 if TYPE_CHECKING:  # segmentation imports OpenCV, on first use
@@ -236,6 +236,7 @@ def _object_silhouette(obj, main: Silhouette, point: tuple[float, float] | None 
     """A :class:`Silhouette` of one object split from the main subject's mask."""
     canvas, framing = frame_mask(obj.mask)
     details = {"box": list(obj.box), "subject_method": main.method}
+    details.update({key: main.details[key] for key in SUBJECT_KEYS if key in main.details})
     if point is not None:
         details["point"] = list(point)
     return Silhouette(obj.mask, canvas, framing, main.method, obj.contour, details)

@@ -42,6 +42,8 @@ FUR = 1.3
 PERSON_SHARE = 0.5
 #: A plain piece at least this many times as tall as wide is a standing figure.
 UPRIGHT = 1.8
+#: A piece filling at least this share of its convex hull is compact (a body, not strokes).
+COMPACT = 0.6
 #: A piece under this share of the largest piece of its candidate is a speck.
 _PIECE_FRACTION = 0.1
 #: Two pieces overlapping this much (IoU) are the same piece (the better-scored is kept).
@@ -66,8 +68,8 @@ class Piece:
 
     ``source``: the candidate it came from; ``score``: that candidate's consensus score;
     ``person``: the share of it in HOG person boxes; ``fur``: its fine texture over the
-    band around it's; ``upright``: its box's height over its width; ``kind``:
-    "person", "animal" or "object".
+    band around it's; ``upright``: its box's height over its width; ``solidity``: the
+    share of its convex hull it fills; ``kind``: "person", "animal" or "object".
     """
 
     mask: np.ndarray
@@ -76,6 +78,7 @@ class Piece:
     person: float = 0.0
     fur: float = 1.0
     upright: float = 1.0
+    solidity: float = 1.0
     kind: str = "object"
 
     @property
@@ -92,6 +95,7 @@ class Piece:
             "person": round(self.person, 3),
             "fur": round(self.fur, 3),
             "upright": round(self.upright, 3),
+            "solidity": round(self.solidity, 3),
         }
 
 
@@ -138,6 +142,9 @@ class KindCues:
         piece.fur = (inside + 1.0) / (around + 1.0)
         rows, cols = np.nonzero(mask)
         piece.upright = float(rows.max() + 1 - rows.min()) / float(cols.max() + 1 - cols.min())
+        outlines, _ = cv2.findContours(eight, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        hull = cv2.contourArea(cv2.convexHull(np.concatenate(outlines)))
+        piece.solidity = min(1.0, area / max(hull, 1.0))
         if piece.person >= PERSON_SHARE or (piece.upright >= UPRIGHT and piece.fur < FUR):
             piece.kind = "person"
         elif piece.fur >= FUR:
@@ -206,6 +213,11 @@ def _prominence(piece: Piece) -> float:
     return piece.score * float(np.sqrt(piece.mask.mean()))
 
 
+def _body(piece: Piece) -> bool:
+    """A furry, compact piece: an animal's body (not a stroke of calligraphy)."""
+    return piece.kind == "animal" and piece.solidity >= COMPACT
+
+
 def _animal_rank(piece: Piece) -> float:
     """:func:`_prominence`, furry pieces first among pieces of like prominence."""
     return _prominence(piece) * (1.5 if piece.kind == "animal" else 1.0)
@@ -227,7 +239,8 @@ def choose_kind(cues: KindCues, candidates: list, winner: str, subject: str, sev
     them when ``several``), else the most prominent such piece of any candidate.
     ``auto``: the winner, unless a person is part of it and something furry is found
     beside: among the winner's pieces, or else of a candidate scoring at least half as
-    well (people photograph their pets beside them). When the kind
+    well (people photograph their pets beside them); when the winner is several
+    animals (furry, compact pieces), the most prominent unless ``several``. When the kind
     asked for is not found, the winner is kept and ``found`` is False.
     """
     by_name = {c.name: c for c in candidates}
@@ -243,6 +256,9 @@ def choose_kind(cues: KindCues, candidates: list, winner: str, subject: str, sev
             return KindChoice([], "object", "no person found: the most salient thing instead", found=False)
         best = max(people, key=_prominence)
         return KindChoice([best], "person", f"the most prominent person (from {best.source})")
+    if subject == "auto" and not several and len(mine) > 1 and all(_body(p) for p in mine):
+        best = max(mine, key=_prominence)  # two cats on a sofa: one pair, on the main one
+        return KindChoice([best], "animal", f"several animals: the most prominent (fur {best.fur:.2f})")
     if subject == "auto" and "person" not in kinds:
         return KindChoice([], kinds.pop() if len(kinds) == 1 else "object", "")
     # auto leaves a person only for something furry; animal for anything but a person.
