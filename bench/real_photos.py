@@ -168,7 +168,9 @@ def main() -> None:
     parser.add_argument("--no-fit", action="store_true", help="segmentation only")
     parser.add_argument("--only", default="", help="comma-separated photo stems")
     parser.add_argument(
-        "--sheets", default=str(ROOT / "docs"), help="folder for the contact sheets, SET_photos.jpg ('' for none)"
+        "--sheets",
+        default=str(ROOT / "docs"),
+        help="folder for the contact sheets, real_photos.jpg and pet_photos.jpg ('' for none)",
     )
     parser.add_argument("--json", default="", help="also write every row here (JSON)")
     args = parser.parse_args()
@@ -193,7 +195,7 @@ def main() -> None:
         lines.append(summary(name, rows))
         print("\n" + lines[-1])
         if args.sheets:
-            sheet = Path(args.sheets) / f"{name}_photos.jpg"
+            sheet = Path(args.sheets) / f"{SETS[name].name}.jpg"
             sheet.parent.mkdir(parents=True, exist_ok=True)
             image = cv2.cvtColor(contact_sheet(tiles), cv2.COLOR_RGB2BGR)
             cv2.imwrite(str(sheet), image, [cv2.IMWRITE_JPEG_QUALITY, 85])

@@ -128,6 +128,12 @@ class KindCues:
         laplacian = np.abs(cv2.Laplacian(grey, cv2.CV_32F, ksize=3))
         return resize(laplacian, self.rgb.shape[1::-1], cv2.INTER_AREA)
 
+    @property
+    def nbytes(self) -> int:
+        """About the memory it holds: the maps computed so far and the judged pieces."""
+        maps = sum(self.__dict__[name].nbytes for name in ("people", "detail") if name in self.__dict__)
+        return maps + sum(piece.mask.nbytes for pieces in self._pieces.values() for piece in pieces)
+
     def judge(self, piece: Piece) -> Piece:
         """Fill in ``piece``'s cues and kind."""
         mask = piece.mask

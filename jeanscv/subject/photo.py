@@ -299,7 +299,8 @@ class PreparedScene:
         """About the memory it holds: the copy, the scene's planes (measured: 23 times
         its coarse copy, 5.7 MB for a 640-pixel copy) and the masks."""
         masks = () if self.found is None else (*self.found.coarse.values(), self.found.threshold_mask)
-        return self.rgb.nbytes + 24 * self.scene.rgb.nbytes + sum(m.nbytes for m in masks if m is not None)
+        cues = self.__dict__["cues"].nbytes if "cues" in self.__dict__ else 0  # once the subject's kind was asked
+        return self.rgb.nbytes + 24 * self.scene.rgb.nbytes + sum(m.nbytes for m in masks if m is not None) + cues
 
 
 class SharedHypotheses:
