@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import json
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -158,31 +159,26 @@ def test_unknown_subject_is_one_clear_error():
         jeanscv.JeansOptions(subject="dog")
 
 
-def test_command_line_subject_report_and_summary(tmp_path, run_cli):
-    photo = tmp_path / "family.png"
-    Image.fromarray(scene().image).save(photo)
-    report = tmp_path / "report.jsonl"
-    result = run_cli(photo, "--subject", "person", "--json", "--report", report, "-o", tmp_path, "--iterations", "5")
-    assert result.exit_code == 0, result.output + result.stderr
-    sidecar = json.loads((tmp_path / "family.jeans.json").read_text())
-    assert sidecar["subject"]["subject"] == "person" and sidecar["subject"]["kind"] == "person"
-    line = json.loads(report.read_text())
-    assert line["uncertain"] is False
-    assert "may have the wrong subject" not in result.stderr
-    assert run_cli(photo, "--subject", "dog").exit_code == 2
-
-
-def test_batch_summary_counts_the_unsure(tmp_path, run_cli):
-    owner_cut = np.ascontiguousarray(scene().image[:, 150:])  # the owner runs along the left side
-    Image.fromarray(owner_cut).save(tmp_path / "a.png")
-    Image.fromarray(scene().image).save(tmp_path / "b.png")
-    report = tmp_path / "report.jsonl"
-    result = run_cli(tmp_path, "--report", report, "-o", tmp_path / "out", "--iterations", "5", "-j", "1")
+def test_command_line_subject_report_and_batch_summary(tmp_path, run_cli):
+    """A folder of two: the owner cut by the left side (unsure: the person found runs
+    along that side) and the whole scene (sure); --subject person dresses the owner."""
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    Image.fromarray(np.ascontiguousarray(scene().image[:, 150:])).save(folder / "a.png")
+    Image.fromarray(scene().image).save(folder / "b.png")
+    report, out = tmp_path / "report.jsonl", tmp_path / "out"
+    result = run_cli(
+        folder, "--subject", "person", "--json", "--report", report, "-o", out, "--iterations", "5", "-j", "1"
+    )
     assert result.exit_code == 0, result.stderr
-    assert f"jeanscv: 1 of 2 may have the wrong subject: `jeanscv serve {tmp_path}/` shows them first" in result.stderr
-    lines = {json.loads(x)["input"].rsplit("/", 1)[-1]: json.loads(x) for x in report.read_text().splitlines()}
+    assert f"jeanscv: 1 of 2 may have the wrong subject: `jeanscv serve {folder}/` shows them first" in result.stderr
+    assert "a.png: note: unsure which thing is the subject (" in result.stderr
+    lines = {Path(json.loads(x)["input"]).name: json.loads(x) for x in report.read_text().splitlines()}
     assert lines["a.png"]["uncertain"] is True and lines["b.png"]["uncertain"] is False
-    assert "note: unsure which thing is the subject (it runs along" in result.stderr
+    sidecar = json.loads((out / "b.jeans.json").read_text())
+    assert sidecar["subject"]["subject"] == "person" and sidecar["subject"]["kind"] == "person"
+    assert sidecar["subject"]["uncertain"] is False and sidecar["subject"]["doubts"] == []
+    assert run_cli(folder / "b.png", "--subject", "dog").exit_code == 2
 
 
 def test_server_takes_the_subject_field(make_client):
@@ -211,12 +207,14 @@ def test_folder_listing_flags_the_unsure_once_known(make_client, tmp_path):
 
 
 def test_two_pets_on_a_sofa_one_pair_or_a_pair_each():
+    from jeanscv.subject.photo import SharedHypotheses
     from testkit.synthetic_photos import two_pets_on_sofa
 
     photo = two_pets_on_sofa()
     left, right = photo.masks
-    (one,) = jeanscv.extract_silhouettes(photo.image)
+    shared = SharedHypotheses()  # the hypotheses cut once for both calls
+    (one,) = jeanscv.extract_silhouettes(photo.image, shared=shared)
     assert one.details["kind"] == "animal" and iou(one.mask >= 0.5, left) >= 0.9  # the larger one
-    every = jeanscv.extract_silhouettes(photo.image, objects="all")
+    every = jeanscv.extract_silhouettes(photo.image, objects="all", shared=shared)
     assert [round(iou(s.mask >= 0.5, m), 1) >= 0.9 for s, m in zip(every, (left, right))] == [True, True]
     assert all(s.details["subject"] == "auto" and s.details["uncertain"] is False for s in every)
