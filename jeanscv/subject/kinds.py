@@ -285,5 +285,5 @@ def choose_kind(cues: KindCues, candidates: list, winner: str, subject: str, sev
         if all(np.count_nonzero(piece.mask & other.mask) < 0.2 * piece.area for other in kept):
             kept.append(piece)
     kind = "animal" if kept[0].kind == "animal" else "object"
-    why = "a person and something else: not the person" if subject == "auto" else f"the most prominent {kind}"
+    why = "a person and an animal: the animal" if subject == "auto" else f"the most prominent {kind}"
     return KindChoice(kept, kind, f"{why} (from {kept[0].source}, fur {kept[0].fur:.2f})")

@@ -28,8 +28,11 @@ in textured scenes), GrabCut seeded where colours are rare on the border (weight
 spectral-residual saliency), GrabCut from a centred rectangle, and two GrabCuts seeded
 by boundary-connectivity saliency on superpixels (:mod:`jeanscv.subject.saliency`).
 The one the others agree with most, along strong colour edges, wins
-(:mod:`jeanscv.subject.consensus`) and is refined at working resolution; ``details``
-records every hypothesis's measures and the reason.
+(:mod:`jeanscv.subject.consensus`); the ``subject`` asked for (``auto``: an animal
+rather than the person beside it, ``animal``, ``person``, ``object``) then keeps the
+winner or some pieces of the hypotheses (:mod:`jeanscv.subject.kinds`), which are
+refined at working resolution; ``details`` records every hypothesis's measures, the
+reason, the ``kind`` found and whether the subject is ``uncertain`` (its ``doubts``).
 """
 
 from __future__ import annotations
