@@ -4,9 +4,10 @@ Public API: :func:`segment` (photo -> :class:`Segmentation`), :func:`hypotheses`
 hypotheses of a scene, which a click session reuses), :class:`SharedHypotheses` (one
 photo's hypotheses cut once for both) and :func:`clean_mask`.
 
-Here: the threshold method, auto's hypotheses and choice, and :func:`segment`, which
-calls them. GrabCut and its refinement live in :mod:`.grabcut`, the scene and its
-measures in :mod:`.scene`, the consensus in :mod:`.consensus` and the masks' helpers in
+Here: auto's hypotheses and choice, and :func:`segment`, which calls them. The
+threshold method lives in :mod:`.threshold`, GrabCut and its refinement in
+:mod:`.grabcut`, the scene and its measures in :mod:`.scene`, the consensus in
+:mod:`.consensus`, the subject's kind in :mod:`.kinds` and the masks' helpers in
 :mod:`.masks`.
 
 Arrays: images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8``; masks are
@@ -56,7 +57,6 @@ from .masks import (
     MIN_AREA_FRACTION,
     RIM_ONLY,
     binarise,
-    border_contact,
     clean,
     clean_mask,
     downscale,
@@ -66,15 +66,14 @@ from .masks import (
     rim_fraction,
     shape_for,
 )
-from .scene import Scene, rgb_to_lab
+from .scene import Scene
+from .threshold import threshold_split as _threshold
 
 if TYPE_CHECKING:  # the kind cues load OpenCV's people detector, on first use
     from .kinds import KindCues
 
 #: :func:`segment`'s methods: the named ones, and ``mask`` (a given mask, cleaned).
 METHODS = (*SILHOUETTE_METHODS, "mask")
-
-_BLUR_MARGIN = 0.02  # texture-blurred thresholds must beat sharp ones by this score
 
 
 @dataclass
@@ -108,72 +107,6 @@ def _alpha_meaningful(alpha: np.ndarray) -> bool:
     """An alpha channel is a silhouette when 0.5%..98% of the image is opaque (>= 128)."""
     fraction = float((alpha >= 128).mean())
     return MIN_AREA_FRACTION <= fraction <= FULL_FRACTION
-
-
-def _channels(rgb: np.ndarray) -> dict[str, np.ndarray]:
-    """Candidate 8-bit channels for thresholding: grey, HSV saturation, Lab a and b."""
-    hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)
-    lab = rgb_to_lab(rgb)
-    return {
-        "grey": cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY),
-        "saturation": hsv[..., 1],
-        "lab_a": lab[..., 1],
-        "lab_b": lab[..., 2],
-    }
-
-
-def _split(channel: np.ndarray, threshold: float) -> tuple[np.ndarray, str]:
-    """Split at ``threshold``; the object is the side touching less of the border."""
-    light = channel >= threshold
-    if border_contact(light) <= border_contact(~light):
-        return light, "light"
-    return ~light, "dark"
-
-
-def _threshold(rgb: np.ndarray, threshold: float | None, scene: Scene) -> tuple[np.ndarray, dict]:
-    """``grey >= threshold`` when given, else the best-scoring Otsu split among
-    grey / saturation / Lab a / Lab b, each lightly blurred (and texture-blurred when
-    the scene is scored at its texture scale).
-    Returns the cleaned working mask and what was chosen."""
-    if threshold is not None:
-        raw, polarity = _split(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), threshold)
-        cleaned = clean(raw)
-        info = {"channel": "grey", "blur_sigma": 0.0, "threshold": float(threshold), "polarity": polarity}
-        return cleaned, {**info, "features": scene.features(cleaned)}
-    best: tuple[np.ndarray, dict] | None = None
-    best_rank = -np.inf
-    scores = {}
-    sharp = max(1.0, 0.002 * max(rgb.shape[:2]))
-    # Texture-blurred channels only where the scene is scored at its texture scale:
-    # elsewhere they never won (the same masks on 18 real and 96 synthetic photos
-    # without them), and they are half of this function's time.
-    blurs = (sharp, scene.texture_sigma * scene.factor) if scene.scale == "texture" else (sharp,)
-    for sigma in blurs:
-        blurred = cv2.GaussianBlur(rgb, (0, 0), sigma)
-        for name, channel in _channels(blurred).items():
-            if int(channel.max()) == int(channel.min()):
-                continue
-            value, _ = cv2.threshold(channel, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-            # Otsu's value t keeps pixels > t, i.e. >= t + 1 on integers.
-            raw, polarity = _split(channel, value + 1)
-            cleaned = clean(raw)
-            features = scene.features(cleaned)
-            key = f"{name}@{sigma:.1f}"
-            scores[key] = features["score"]
-            info = {
-                "channel": name,
-                "blur_sigma": round(sigma, 2),
-                "threshold": float(value + 1),
-                "polarity": polarity,
-                "features": features,
-            }
-            # Blurring smooths boundaries: only take it when clearly better.
-            rank = features["score"] - (0.0 if sigma == sharp else _BLUR_MARGIN)
-            if rank > best_rank:
-                best, best_rank = (cleaned, info), rank
-    if best is None or best[1]["features"]["score"] <= 0:
-        raise JeansError("no object found to segment")
-    return best[0], {**best[1], "scores": scores}
 
 
 class _Inline:
