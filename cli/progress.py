@@ -143,20 +143,18 @@ class Progress:
             self._status = ""
 
     def summary(self, note: str = "") -> str:
-        """``N ok, N failed, N skipped in T s`` (printed unless quiet), and on a second
-        line how many may have the wrong subject, when any (always printed: it says
-        what to look at)."""
+        """``N ok, N failed, N skipped in T s`` (printed unless quiet), after a line saying
+        how many photos may have the wrong subject, when any, and how to look at them."""
         self.close()
         c = self.counts
         line = f"{c['ok']} ok, {c['failed']} failed, {c['skipped']} skipped in {time.perf_counter() - self.began:.1f} s"
         if note:
             line += f" ({note})"
-        if not self.quiet:
-            self._write(line)
-        if self.unsure:
+        if self.unsure and not self.quiet:
             unsure = f"jeanscv: {self.unsure} of {c['ok']} may have the wrong subject"
             if c["ok"] > 1:
                 unsure += f": `{self.serve_hint}` shows them first"
             self._write(unsure)
-            line += "\n" + unsure
+        if not self.quiet:
+            self._write(line)
         return line
