@@ -218,3 +218,23 @@ def test_two_pets_on_a_sofa_one_pair_or_a_pair_each():
     every = jeanscv.extract_silhouettes(photo.image, objects="all", shared=shared)
     assert [round(iou(s.mask >= 0.5, m), 1) >= 0.9 for s, m in zip(every, (left, right))] == [True, True]
     assert all(s.details["subject"] == "auto" and s.details["uncertain"] is False for s in every)
+
+
+def test_the_unsure_count_comes_before_the_summary_and_not_when_quiet():
+    from jeanscv_cli.progress import Progress
+    from jeanscv_cli.worker import Outcome
+
+    for quiet in (False, True):
+        stream = io.StringIO()
+        progress = Progress(3, quiet=quiet, stream=stream, tty=False)
+        progress.serve_hint = "jeanscv serve photos/"
+        progress.finish(Outcome(0, "a.png", "ok", "a.jeans.png", info={"uncertain": True}))
+        progress.finish(Outcome(1, "b.png", "ok", "b.jeans.png", info={"uncertain": False}))
+        progress.finish(Outcome(2, "c.png", "ok", "c.jeans.png"))  # a drawing: nothing to doubt
+        summary = progress.summary()
+        lines = stream.getvalue().splitlines()
+        if quiet:
+            assert lines == []
+        else:
+            unsure = "jeanscv: 1 of 3 may have the wrong subject: `jeanscv serve photos/` shows them first"
+            assert lines[-2:] == [unsure, summary] and summary.startswith("3 ok, 0 failed, 0 skipped in ")
