@@ -1,10 +1,13 @@
 """CPU seconds of automatic segmentation on 12-MP copies of the real photos, one thread.
 
-    python -m bench.segmentation_speed [--only NAME,...] [--width 4000] [--stages]
+    python -m bench.segmentation_speed [--set real|pets] [--subject SUBJECT] [--only NAME,...]
+                                       [--width 4000] [--stages]
 
-Each photo of ``../shared/real_photos`` is upscaled (bicubic) to ``--width`` pixels
+Each photo of ``../shared/real_photos`` (``--set pets``: ``../shared/pet_photos``) is upscaled (bicubic) to ``--width`` pixels
 wide (4000: 9-16 MP, 12 MP for a 4:3 photo) and segmented by
-``jeanscv.subject.photo.segment(image, "auto")`` with OpenCV on one thread;
+``jeanscv.subject.photo.segment(image, "auto", subject=SUBJECT)`` with OpenCV on one
+thread (``--subject object`` leaves out the subject-kind cues of
+:mod:`jeanscv.subject.kinds`: the cost before them);
 the figure is ``time.process_time()`` around that call (it counts every thread of the
 process), the best of ``--repeat`` runs. Prints one row per photo and the median; the
 issue's target is 0.6 s.
@@ -25,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from testkit.real_photo_set import REAL_PHOTOS, photo_paths
+from testkit.real_photo_set import PET_PHOTOS, REAL_PHOTOS, photo_paths
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,6 +42,7 @@ STAGES = (
     ("border-colour cut", "jeanscv.subject.photo", "_grabcut_hypothesis"),
     ("threshold", "jeanscv.subject.photo", "_threshold"),
     ("choose", "jeanscv.subject.consensus", "choose"),
+    ("subject kind", "jeanscv.subject.kinds", "choose_kind"),
     ("refine", "jeanscv.subject.photo", "refine"),
     ("working size (all)", "jeanscv.subject.photo", "_segment_photo"),
 )
@@ -76,16 +80,19 @@ def upscaled(path: Path, width: int) -> np.ndarray:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--set", choices=("real", "pets"), default="real", help="which shared folder")
+    parser.add_argument("--subject", default="auto", help="auto, animal, person or object")
     parser.add_argument("--only", default="", help="comma-separated photo stems")
     parser.add_argument("--width", type=int, default=4000, help="width of the upscaled copies (pixels)")
     parser.add_argument("--repeat", type=int, default=1, help="runs per photo; the best counts")
     parser.add_argument("--stages", action="store_true", help="also print CPU seconds per stage")
     args = parser.parse_args()
-    paths = photo_paths()
+    folder = {"real": REAL_PHOTOS, "pets": PET_PHOTOS}[args.set]
+    paths = photo_paths(folder)
     if args.only:
         paths = [p for p in paths if p.stem in set(args.only.split(","))]
     if not paths:
-        sys.exit(f"no photos in {REAL_PHOTOS}: nothing to measure")
+        sys.exit(f"no photos in {folder}: nothing to measure")
 
     cv2.setNumThreads(1)
     from jeanscv.errors import JeansError
@@ -94,7 +101,7 @@ def main() -> None:
     spent: dict[str, float] = defaultdict(float)
     if args.stages:
         _instrument(spent)
-    photo.segment(upscaled(paths[0], 320), "auto")  # first call: lazy imports, caches
+    photo.segment(upscaled(paths[0], 320), "auto", subject=args.subject)  # first call: lazy imports, caches
     labels = [label for label, *_ in STAGES] if args.stages else []
     print("| photo | size | seg CPU s |" + "".join(f" {label} |" for label in labels))
     print("| --- | --- | ---: |" + " ---: |" * len(labels))
@@ -106,7 +113,7 @@ def main() -> None:
             spent.clear()
             start = time.process_time()
             try:
-                photo.segment(image, "auto")
+                photo.segment(image, "auto", subject=args.subject)
             except JeansError:
                 pass  # a photo where nothing is found still costs its time
             elapsed = time.process_time() - start
@@ -121,7 +128,7 @@ def main() -> None:
     if labels:
         print("| **sum** | | " + f"{sum(seconds):.3f} |" + "".join(f" {totals[label]:.3f} |" for label in labels))
     print(
-        f"\n{len(seconds)} photos at {args.width} px wide, one thread: segmentation CPU s median "
+        f"\n{len(seconds)} photos at {args.width} px wide, subject {args.subject}, one thread: segmentation CPU s median "
         f"{np.median(seconds):.3f}, max {np.max(seconds):.3f} (target {TARGET_SECONDS})"
     )
 

@@ -17,7 +17,7 @@ import click
 
 from jeanscv import __version__
 from jeanscv.device import BACKENDS, DEVICES
-from jeanscv.options import KINDS, OBJECTS, POSTURES, STYLES, JeansOptions
+from jeanscv.options import KINDS, OBJECTS, POSTURES, STYLES, SUBJECTS, JeansOptions
 
 #: The library's defaults, which the command's options show and use (``--device`` is ``auto`` here).
 DEFAULTS = JeansOptions()
@@ -32,6 +32,7 @@ Examples:
   jeanscv horse.png --json --svg --gif  sidecars: report, vector overlay, animation
   jeanscv cat.jpg --mask cat_mask.png   your own mask instead of the segmentation
   jeanscv pets.jpg --objects all        jeans on every separate object
+  jeanscv family.jpg --subject person    the person, not the dog beside them
   jeanscv pets.jpg --point 420,310      jeans on the object under that pixel (a click)
   jeanscv pets.jpg --point 420,310 --background-point 90,40   ...and not on that
   jeanscv pets.jpg --box 300,180,640,470   jeans on the thing in that box (x0,y0,x1,y1)
@@ -202,6 +203,14 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     default=DEFAULTS.objects,
     show_default=True,
     help="Jeans on the main subject only, or on every separate object of a photo.",
+)
+@click.option(
+    "--subject",
+    type=click.Choice(SUBJECTS),
+    default=DEFAULTS.subject,
+    show_default=True,
+    help="What automatic finding looks for in a photo: auto (an animal rather than the person "
+    "beside it), animal, person, or object (the most salient thing).",
 )
 @click.option(
     "--point",
@@ -384,6 +393,7 @@ def _main(
     options = JeansOptions(**values, device=device, backend=backend)
 
     progress = Progress(found.total, quiet=quiet, verbose=verbose)
+    progress.serve_hint = _serve_hint(paths)
     noun = "input" if found.total == 1 else "inputs"
     workers, why = _workers(jobs, found.total)
     progress.info(
@@ -519,6 +529,16 @@ def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcome
     if any(outcome.usage for outcome in outcomes.values()):
         return 2  # an option did not fit its input (a --point outside the image)
     return 1 if progress.counts["failed"] else 0
+
+
+def _serve_hint(paths) -> str:
+    """The ``jeanscv serve`` command that shows a run's photos: its folder when one was
+    named, else the first input's folder."""
+    import shlex
+
+    first = Path(paths[0])
+    folder = first if first.is_dir() else first.parent
+    return f"jeanscv serve {shlex.quote(str(folder) + os.sep if str(folder) != '.' else '.')}"
 
 
 #: Memory one worker may need at its peak (a 24-MP photo; README "Speed").

@@ -38,6 +38,8 @@ class Progress:
         self.tty = (self.stream.isatty() if tty is None else tty) and not quiet
         self.done = 0
         self.counts = {"ok": 0, "failed": 0, "skipped": 0}
+        self.unsure = 0  # finished photos whose subject may be the wrong thing
+        self.serve_hint = "jeanscv serve FOLDER"  # how to look at them (the command sets the folder)
         self.began = time.perf_counter()
         self._work_seconds = 0.0
         self._worked = 0
@@ -101,6 +103,8 @@ class Progress:
                 self._write(f"{prefix} {outcome.input}: skipped ({outcome.error})")
             else:
                 self._write(f"{prefix} {outcome.input} -> {outcome.output} ({outcome.seconds:.1f} s)")
+        if outcome.status == "ok" and outcome.info.get("uncertain"):
+            self.unsure += 1
         if outcome.status == "ok" and outcome.info.get("note") and not self.quiet:
             self._write(f"jeanscv: {outcome.input}: note: {outcome.info['note']}")
         if self.verbose and outcome.status == "ok" and outcome.info.get("kind") == "clip":
@@ -145,12 +149,18 @@ class Progress:
             self._status = ""
 
     def summary(self, note: str = "") -> str:
-        """``N ok, N failed, N skipped in T s`` (printed unless quiet)."""
+        """``N ok, N failed, N skipped in T s`` (printed unless quiet), after a line saying
+        how many photos may have the wrong subject, when any, and how to look at them."""
         self.close()
         c = self.counts
         line = f"{c['ok']} ok, {c['failed']} failed, {c['skipped']} skipped in {time.perf_counter() - self.began:.1f} s"
         if note:
             line += f" ({note})"
+        if self.unsure and not self.quiet:
+            unsure = f"jeanscv: {self.unsure} of {c['ok']} may have the wrong subject"
+            if c["ok"] > 1:
+                unsure += f": `{self.serve_hint}` shows them first"
+            self._write(unsure)
         if not self.quiet:
             self._write(line)
         return line

@@ -143,10 +143,15 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
         "objects": [_object_info(obj) for obj in result.objects],
     }
     subject = result.silhouette.details
-    if subject.get("uncertain") and not options.points and options.box is None and options.clicks is None:
+    clicked = bool(options.points or options.box is not None or options.clicks is not None)
+    if "uncertain" in subject and not clicked:
+        # The report's line says whether the subject may be the wrong thing (a folder's
+        # summary counts them; `jeanscv serve` lists them first).
+        outcome.info["uncertain"] = bool(subject["uncertain"])
+    if outcome.info.get("uncertain"):
+        why = "; ".join(subject.get("doubts") or ()) or f"the hypotheses overlap by {subject['consensus']:.2f}"
         outcome.info["note"] = (
-            f"unsure which thing is the subject (the segmentation's hypotheses overlap by {subject['consensus']:.2f} "
-            "on average); if the jeans missed it, click it with --point X,Y"
+            f"unsure which thing is the subject ({why}); if the jeans missed it, click it with --point X,Y"
         )
     # Everything is encoded before the first write, so a failure leaves no outputs.
     data: dict[str, bytes] = {}

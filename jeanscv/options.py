@@ -28,6 +28,9 @@ if TYPE_CHECKING:
 KINDS = ("auto", "silhouette", "photo")
 #: ``one``: the main subject; ``all``: every separate object, each with its own garment.
 OBJECTS = ("one", "all")
+#: What a photo's subject is: ``auto`` prefers an animal beside a person, ``animal`` and
+#: ``person`` say which, ``object`` takes the most salient thing whatever it is.
+SUBJECTS = ("auto", "animal", "person", "object")
 #: How the garment is painted on a photo: a denim texture, or the paper's flat blue.
 STYLES = ("denim", "flat")
 #: ``upright``: the garment hangs down unless no upright fit passes the rule checks;
@@ -54,7 +57,8 @@ class JeansOptions:
 
     Silhouette: ``kind``, ``silhouette_method`` (a built-in or a plugin's name),
     ``threshold`` and ``rect`` (for the ``threshold`` and ``grabcut`` methods), ``mask``
-    (an ``(H, W)`` array or an image file: the object, instead of segmenting), ``objects``;
+    (an ``(H, W)`` array or an image file: the object, instead of segmenting), ``objects``,
+    ``subject`` (what automatic finding looks for: ``auto``, ``animal``, ``person``, ``object``);
     clicks that fix the subject (pixels of the photo as displayed; see
     :func:`jeanscv.subject.extraction.extract_silhouettes`): ``points`` and ``background_points``
     (one object's positive and negative clicks), ``box`` (``(x0, y0, x1, y1)``: that
@@ -84,6 +88,7 @@ class JeansOptions:
     rect: tuple[int, int, int, int] | None = None
     mask: np.ndarray | str | os.PathLike | None = None
     objects: str = _choice("one", OBJECTS, "objects")
+    subject: str = _choice("auto", SUBJECTS, "subject")
     points: tuple[tuple[float, float], ...] = ()
     background_points: tuple[tuple[float, float], ...] = ()
     box: tuple[float, float, float, float] | None = None
@@ -129,4 +134,4 @@ class JeansOptions:
         return tuple(option.name for option in dataclasses.fields(cls))
 
 
-__all__ = ["JeansOptions", "KINDS", "OBJECTS", "POSTURES", "SILHOUETTE_METHODS", "STYLES"]
+__all__ = ["JeansOptions", "KINDS", "OBJECTS", "POSTURES", "SILHOUETTE_METHODS", "STYLES", "SUBJECTS"]

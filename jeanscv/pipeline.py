@@ -141,6 +141,7 @@ def prepare_input(
         rect=options.rect,
         mask=mask,
         shared=shared,
+        subject=options.subject,
     )
     return silhouettes, "photo", pixels, loaded
 

@@ -12,15 +12,10 @@ from .fitting.checks import rule_report
 from .fitting.fitter import FitResult
 from .fitting.posture import posture_name, tilt_degrees
 from .geometry import CANVAS_SIZE
-from .subject.silhouettes import Silhouette, box_of
+from .subject.silhouettes import SUBJECT_KEYS, Silhouette, box_of
 
 if TYPE_CHECKING:  # decoding imports Pillow; a result only holds what it decoded
     from .io.image import LoadedImage
-
-
-#: The auto segmentation's ``details`` that the report gives as ``subject``: the winning
-#: hypothesis, why it won, its mean IoU with the others and whether that is under half.
-SUBJECT_KEYS = ("chosen", "reason", "consensus", "uncertain")
 
 
 @dataclass
@@ -111,7 +106,7 @@ class JeansResult:
             "objects": entries,
             "seconds": round(fit_result.seconds, 3),
         }
-        # Why auto segmentation took this subject, and whether its hypotheses agreed.
+        # Why auto segmentation took this subject, and whether it may be the wrong thing.
         subject = {key: self.silhouette.details[key] for key in SUBJECT_KEYS if key in self.silhouette.details}
         if subject:
             report["subject"] = subject

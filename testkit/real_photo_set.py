@@ -1,5 +1,6 @@
-"""The real photographs with reference masks in ``../shared/real_photos`` (see its
-README): finding them and reading their masks, for tests and benches."""
+"""The real photographs with reference masks in ``../shared/real_photos`` and
+``../shared/pet_photos`` (see their READMEs): finding them and reading their masks, for
+tests and benches."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import cv2
 import numpy as np
 
 REAL_PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "real_photos"
+PET_PHOTOS = REAL_PHOTOS.with_name("pet_photos")
 
 
 def photo_paths(folder: Path = REAL_PHOTOS) -> list[Path]:

@@ -492,3 +492,53 @@ def two_objects(seed: int = 2023, width: int = 800, height: int = 500) -> MultiP
     foreground = np.where(owner[..., None], coat, fur)
     image = compose(owner | dog, foreground, ground, rng)
     return MultiPhoto("two_objects", image, (owner, dog))
+
+
+def _sofa(height: int, width: int, rng: np.random.Generator) -> np.ndarray:
+    """A plain wall over a plain red-brown sofa seat filling the lower half, with a
+    little upholstery grain: (height, width, 3) uint8."""
+    room = np.empty((height, width, 3), np.float32)
+    room[:] = (214, 206, 190)
+    room[np.arange(height) >= 0.5 * height] = (150, 72, 60)
+    room += rng.normal(0.0, 3.0, room.shape).astype(np.float32)
+    return np.clip(room, 0, 255).astype(np.uint8)
+
+
+def _fur(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Cat fur over ``mask``'s box at the photo's own scale (not blown up to the frame:
+    fine fur), zero elsewhere: (H, W, 3) uint8."""
+    rows, cols = np.nonzero(mask)
+    y0, y1, x0, x1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+    coat = np.zeros((*mask.shape, 3), np.uint8)
+    coat[y0:y1, x0:x1] = texture("chelsea", y1 - y0, x1 - x0, rng)
+    return coat
+
+
+def pet_beside_owner(seed: int = 2023, width: int = 800, height: int = 500) -> MultiPhoto:
+    """A pet on a sofa beside its owner: an animal-textured blob (cat fur) lying on a
+    plain sofa-coloured seat that fills the lower half of the frame, and a standing
+    person-shaped figure (the zoo's ``person``, plainly dressed) beside it, before a
+    plain wall. ``masks``: (person, animal). Needs the chelsea texture (bundled with
+    scikit-image)."""
+    from testkit.synthetic import ZOO
+
+    rng = np.random.default_rng([seed, 30])
+    owner = _place(ZOO["person"]() >= 0.5, height, width, (0.27, 0.52), 0.8, False)
+    pet = blob_mask(height, width, rng, center=(0.66, 0.62), size=0.36, lobes=4)
+    room = _sofa(height, width, rng)
+    clothes = np.empty_like(room)
+    clothes[:] = (52, 64, 110)  # plain blue
+    foreground = np.where(pet[..., None], _fur(pet, rng), clothes)
+    image = compose(owner | pet, foreground, room, rng)
+    return MultiPhoto("pet_beside_owner", image, (owner, pet))
+
+
+def two_pets_on_sofa(seed: int = 2023, width: int = 800, height: int = 500) -> MultiPhoto:
+    """Two animal-textured blobs (cat fur) lying apart on a plain sofa, the left one the
+    larger; ``masks``: (left, right)."""
+    rng = np.random.default_rng([seed, 31])
+    left = blob_mask(height, width, rng, center=(0.3, 0.64), size=0.42, lobes=4)
+    right = blob_mask(height, width, rng, center=(0.74, 0.66), size=0.3, lobes=4)
+    fur = np.maximum(_fur(left, rng), _fur(right, rng))
+    image = compose(left | right, fur, _sofa(height, width, rng), rng)
+    return MultiPhoto("two_pets_on_sofa", image, (left, right))

@@ -81,8 +81,10 @@ def test_report_says_why_auto_took_its_subject():
     result = apply_jeans(photo, iterations=10)
     subject = result.report()["subject"]
     details = result.silhouette.details
-    assert subject == {key: details[key] for key in ("chosen", "reason", "consensus", "uncertain")}
-    assert subject["chosen"] in subject["reason"] and subject["uncertain"] is False
+    keys = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts")
+    assert subject == {key: details[key] for key in keys}
+    assert subject["chosen"] in subject["reason"] and subject["uncertain"] is False and subject["doubts"] == []
+    assert subject["subject"] == "auto"
     assert subject["consensus"] == details["candidates"][subject["chosen"]]["consensus"] >= 0.5
     # A given mask is not a choice: nothing to explain.
     assert "subject" not in apply_jeans(photo, mask=mask, iterations=10).report()

@@ -330,10 +330,12 @@ def test_folder_gallery_and_confinement(make_client, folder):
     client = make_client(folder=folder)
     listing = client.get("/api/folder").json()
     assert [item["name"] for item in listing["items"]] == ["person.png", "pets.png"]
-    assert all(not item["output"] for item in listing["items"])
+    assert all(not item["output"] and item["uncertain"] is None for item in listing["items"])
     thumb = client.post(listing["items"][0]["thumb"])
     assert thumb.status_code == 200 and thumb.headers["content-type"] == "image/jpeg"
     assert (folder / "person.jeans.png").is_file()  # the command line's output, made on demand and kept
+    # Once made here, whether its subject may be the wrong thing is known (a drawing's is sure).
+    assert [item["uncertain"] for item in client.get("/api/folder").json()["items"]] == [False, None]
     for path in (
         "/api/folder/2/thumb",
         "/api/folder/-1/thumb",
@@ -358,7 +360,7 @@ def test_folder_fix_with_clicks(make_client, folder):
     point = inside_point(dog)
     saved = client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": [{"positive": [point]}]})
     assert saved.status_code == 200, saved.text
-    assert saved.json()["clicks"] is True and saved.json()["output"] is True
+    assert saved.json()["clicks"] is True and saved.json()["output"] is True and saved.json()["uncertain"] is False
     assert read_clicks(sidecar_path(folder / "pets.png")) == Clicks.single([point], image_size=(800, 500))
     with Image.open(folder / "pets.jeans.png") as output:
         pixels = np.asarray(output.convert("RGB"))

@@ -337,3 +337,37 @@ def test_a_keyboard_alone_opens_a_photo(server, tmp_path):
             assert "pets.png" in page.inner_text("#status")
         finally:
             browser.close()
+
+
+def test_the_subject_select_goes_with_the_next_photo(server):
+    """The page's "Find" select is sent with the photo dropped after it is changed: a pet
+    beside its owner is the pet by default, the owner with "a person"."""
+    problem = _browser_missing()
+    assert not problem, problem  # in CI: fail instead of skipping
+    from playwright.sync_api import sync_playwright
+
+    from testkit.synthetic_photos import pet_beside_owner
+
+    image = pet_beside_owner().image
+    answers, problems = [], []
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"], headless=True)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 860})
+            page.on("pageerror", lambda error: problems.append(str(error)))
+            page.on(
+                "response",
+                lambda response: response.url.endswith("/api/photos") and answers.append(response.json()),
+            )
+            page.goto(server + "/")
+            page.wait_for_selector("#garment option", state="attached")
+            _drop_photo(page, image)
+            _wait_until(page, lambda: answers, 60, "no answer to the first upload")
+            assert answers[-1]["summary"]["kind"] == "animal"
+            page.select_option("#subject", "person")
+            _drop_photo(page, image)
+            _wait_until(page, lambda: len(answers) == 2, 60, "no answer to the second upload")
+            assert answers[-1]["summary"]["kind"] == "person"
+        finally:
+            browser.close()
+    assert not problems, problems

@@ -24,6 +24,7 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
 from jeanscv.errors import JeansError
+from jeanscv.options import SUBJECTS
 
 from . import engine
 from .guard import UNEXPECTED, BodyRefused, Guard, TooLarge, log_unexpected, own_names
@@ -104,6 +105,9 @@ class State:
         self.folder_lock = threading.Lock()
         self.backend = config.backend
         self.folder = config.folder.resolve() if config.folder is not None else None
+        # Folder items (by name) whose subject may be the wrong thing, once known: their
+        # output was made, or they were opened, here (True/False; clicks make it False).
+        self.unsure: dict[str, bool] = {}
 
     def open(self) -> None:
         self.tmp = Path(tempfile.mkdtemp(prefix="jeanscv-serve-"))
@@ -237,8 +241,8 @@ class _Api:
             "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
         }
 
-    def open_and_render(self, path: Path, name: str, clicks_for) -> dict:
-        photo = engine.open_photo(path, name, self.config.max_pixels)
+    def open_and_render(self, path: Path, name: str, clicks_for, subject: str = "auto") -> dict:
+        photo = engine.open_photo(path, name, self.config.max_pixels, subject)
         photo_id = self.state.photos.put(photo, photo.nbytes)
         clicks = clicks_for(photo) if clicks_for else None
         answer = self.render(photo_id, photo, clicks, engine.RenderOptions())
@@ -250,13 +254,13 @@ class _Api:
             self.state.pool.submit_background(_prepare_session, photo)
         return {"photo": photo_id, "name": name, "kind": photo.kind, **answer}
 
-    def upload_job(self, upload, name: str) -> dict:
+    def upload_job(self, upload, name: str, subject: str) -> dict:
         fd, temporary = tempfile.mkstemp(suffix=_suffix(name), dir=self.state.tmp)
         try:
             with os.fdopen(fd, "wb") as copy:
                 upload.file.seek(0)
                 shutil.copyfileobj(upload.file, copy, 1 << 20)
-            return self.open_and_render(Path(temporary), name, None)
+            return self.open_and_render(Path(temporary), name, None, subject)
         finally:
             try:
                 os.unlink(temporary)
@@ -275,7 +279,10 @@ class _Api:
             if file is None or isinstance(file, str):
                 return _error(400, "expected a multipart form with one file in the field 'file'")
             name = _safe_name(file.filename)
-            return JSONResponse(await self.job(name, self.upload_job, file, name))
+            subject = form.get("subject") or "auto"
+            if subject not in SUBJECTS:
+                return _error(422, f"unknown subject (use {', '.join(SUBJECTS)})")
+            return JSONResponse(await self.job(name, self.upload_job, file, name, subject))
         finally:
             await form.close()
 
@@ -365,6 +372,9 @@ class _Api:
             "output": _plain_file_in(job.outputs["image"], self.state.folder),
             "clicks": engine.saved_clicks(job) is not None,
             "thumb": f"/api/folder/{index}/thumb",
+            # Whether its subject may be the wrong thing: None until known (its output
+            # made or the photo opened by this server), False once clicked.
+            "uncertain": self.state.unsure.get(job.path.name),
         }
 
     async def folder_list(self, request: Request) -> Response:
@@ -382,12 +392,16 @@ class _Api:
         with self.state.folder_lock:
             _refuse_links(job, self.state.folder)
             if engine.output_stale(job):
-                engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels)
+                self._remember(job, engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels))
             try:
                 return engine.thumbnail(output, _THUMB_SIDE)
             except JeansError:
-                engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels)
+                self._remember(job, engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels))
                 return engine.thumbnail(output, _THUMB_SIDE)
+
+    def _remember(self, job, uncertain: bool | None) -> None:
+        """Keep a folder item's ``uncertain`` for the listing (clicks count as sure)."""
+        self.state.unsure[job.path.name] = bool(uncertain)
 
     async def folder_thumb(self, request: Request) -> Response:
         job = self.folder_job(request)
@@ -413,6 +427,7 @@ class _Api:
 
         answer = await self.job(job.path.name, self.open_and_render, job.path, job.path.name, saved)
         answer["item"] = request.path_params["item"]
+        self._remember(job, not answer.get("clicks") and answer.get("summary", {}).get("uncertain"))
         return JSONResponse(answer)
 
     async def folder_save(self, request: Request) -> Response:
@@ -439,6 +454,7 @@ class _Api:
             with self.state.folder_lock:
                 _refuse_links(job, self.state.folder)
                 engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels)
+                self._remember(job, False)  # the clicks say what the subject is
 
         await self.job(photo.name, save)
         return JSONResponse(self.item_entry(request.path_params["item"], job))

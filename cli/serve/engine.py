@@ -214,15 +214,16 @@ def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
     return cv2.resize(picture, target, interpolation=cv2.INTER_AREA)
 
 
-def open_photo(path: Path, name: str, max_pixels: int) -> Photo:
-    """Decode and segment a file (an upload's temporary copy, or a folder's photo).
+def open_photo(path: Path, name: str, max_pixels: int, subject: str = "auto") -> Photo:
+    """Decode and segment a file (an upload's temporary copy, or a folder's photo);
+    ``subject``: what automatic finding looks for (``--subject``).
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """
     from jeanscv.subject.photo import SharedHypotheses
 
     shared = SharedHypotheses()  # auto's hypotheses, cut once for the click session too
-    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels, shared=shared)
+    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels, shared=shared, subject=subject)
     if kind == "silhouette":
         first = silhouettes[0]
         size = tuple(int(v) for v in first.framing.image_size)
@@ -411,6 +412,7 @@ def report_summary(photo: Photo, objects: list) -> dict:
         "method": first.silhouette.method,
         "objective": round(float(first.fit.objective), 4),
         "uncertain": bool(details.get("uncertain", False)),
+        "kind": details.get("kind", ""),  # what automatic finding took it for (animal, person, object)
     }
     return summary
 
@@ -450,19 +452,21 @@ def output_stale(job: Job) -> bool:
     return "image" in worker.wanted_outputs(job, JeansOptions(), overwrite=False)
 
 
-def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> None:
+def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> bool | None:
     """Make the folder photo's output as ``jeanscv FOLDER`` does (its saved clicks
-    included); JeansError with the failure's one-line reason."""
+    included); JeansError with the failure's one-line reason. Returns whether its
+    subject may be the wrong thing (None where that does not apply: clicks or a drawing)."""
     outcome = worker.process(job, JeansOptions(backend=backend, max_pixels=max_pixels), overwrite=True)
     if outcome.status == "failed":
         raise JeansError(outcome.error)
+    return outcome.info.get("uncertain")
 
 
 def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) -> None:
     """Save the folder photo's clicks beside it, then make its output from them as the
     command line does; JeansError with the reason when that fails."""
     write_clicks(sidecar_path(job.path), clicks)
-    write_folder_outputs(job, backend, max_pixels)
+    write_folder_outputs(job, backend, max_pixels)  # clicked: the subject is the user's
 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:

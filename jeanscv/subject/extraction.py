@@ -11,7 +11,7 @@ from ..errors import JeansError
 from ..geometry import mask_box
 from ..options import OBJECTS
 from .framing import frame_mask
-from .silhouettes import Silhouette
+from .silhouettes import SUBJECT_KEYS, Silhouette
 from .silhouettes import box_of as _box_of
 
 if TYPE_CHECKING:  # segmentation imports OpenCV, on first use
@@ -26,13 +26,17 @@ def extract_silhouette(
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
     shared: SharedHypotheses | None = None,
+    subject: str = "auto",
+    several: bool = False,
 ) -> Silhouette:
     """Segment the main object of a photo ``(H, W, 3|4)`` uint8 and frame it.
 
     ``method``: ``auto``, ``alpha``, ``threshold``, ``grabcut`` (see the README);
     ``mask``: a user-supplied ``(H, W)`` mask, used instead of segmentation; ``shared``:
     a :class:`~jeanscv.subject.photo.SharedHypotheses` that auto's hypotheses are
-    cut into, or taken from (a click session of the same photo shares them).
+    cut into, or taken from (a click session of the same photo shares them);
+    ``subject``: what auto looks for (``auto``, ``animal``, ``person``, ``object``;
+    see :func:`jeanscv.subject.photo.segment`), ``several``: every animal it finds.
     """
     from .photo import segment
     from .plugins import is_plugin_silhouette_method, segment_with
@@ -42,7 +46,16 @@ def extract_silhouette(
         result = segment_with(method, image)
     else:
         method = "mask" if mask is not None else method
-        result = segment(image, method, threshold=threshold, rect=rect, mask=mask, shared=shared)
+        result = segment(
+            image,
+            method,
+            threshold=threshold,
+            rect=rect,
+            mask=mask,
+            shared=shared,
+            subject=subject,
+            several=several,
+        )
     canvas, framing = frame_mask(result.mask)
     return Silhouette(
         result.mask.astype(np.float32), canvas, framing, result.method, result.contour, dict(result.details)
@@ -80,12 +93,15 @@ def extract_silhouettes(
     rect: tuple[int, int, int, int] | None = None,
     mask: np.ndarray | None = None,
     shared: SharedHypotheses | None = None,
+    subject: str = "auto",
 ) -> list[Silhouette]:
     """The objects of a photo ``(H, W, 3|4)`` uint8, each segmented and framed on its own.
 
     ``objects="one"``: the main subject (as :func:`extract_silhouette`); ``"all"``: every
     separate object of the subject mask, largest first (specks under 10% of the largest
-    are dropped).
+    are dropped). ``subject``: what automatic finding looks for (``auto``, ``animal``,
+    ``person``, ``object``): with ``"one"`` the most prominent animal, with ``"all"``
+    every animal found (see :func:`jeanscv.subject.photo.segment`).
 
     Clicks fix the subject (``(x, y)`` image pixels): ``points`` are the positive clicks
     of one object and ``background_points`` its negative ones; ``clicks`` gives several
@@ -113,7 +129,9 @@ def extract_silhouettes(
         return _mask_objects(pixels, method, objects, points, threshold, rect, mask)
     wanted = object_clicks(points, background_points, clicks, box)
     if not wanted:
-        main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
+        main = extract_silhouette(
+            pixels, method, threshold=threshold, rect=rect, shared=shared, subject=subject, several=objects == "all"
+        )
         found = split_objects(main.mask) if objects == "all" else []
         if len(found) <= 1:
             main.details["box"] = list(_box_of(main))
@@ -129,7 +147,9 @@ def extract_silhouettes(
     chosen = clicked_silhouettes(ClickSession(pixels, shared=shared), wanted)
     if objects == "all":
         try:
-            main = extract_silhouette(pixels, method, threshold=threshold, rect=rect, shared=shared)
+            main = extract_silhouette(
+                pixels, method, threshold=threshold, rect=rect, shared=shared, subject=subject, several=True
+            )
         except JeansError:
             return chosen
         covered = np.zeros(pixels.shape[:2], bool)
@@ -266,6 +286,7 @@ def _object_silhouette(obj, main: Silhouette, point: tuple[float, float] | None 
     """A :class:`Silhouette` of one object split from the main subject's mask."""
     canvas, framing = frame_mask(obj.mask)
     details = {"box": list(obj.box), "subject_method": main.method}
+    details.update({key: main.details[key] for key in SUBJECT_KEYS if key in main.details})
     if point is not None:
         details["point"] = list(point)
     return Silhouette(obj.mask, canvas, framing, main.method, obj.contour, details)

@@ -4,9 +4,10 @@ Public API: :func:`segment` (photo -> :class:`Segmentation`), :func:`hypotheses`
 hypotheses of a scene, which a click session reuses), :class:`SharedHypotheses` (one
 photo's hypotheses cut once for both) and :func:`clean_mask`.
 
-Here: the threshold method, auto's hypotheses and choice, and :func:`segment`, which
-calls them. GrabCut and its refinement live in :mod:`.grabcut`, the scene and its
-measures in :mod:`.scene`, the consensus in :mod:`.consensus` and the masks' helpers in
+Here: auto's hypotheses and choice, and :func:`segment`, which calls them. The
+threshold method lives in :mod:`.threshold`, GrabCut and its refinement in
+:mod:`.grabcut`, the scene and its measures in :mod:`.scene`, the consensus in
+:mod:`.consensus`, the subject's kind in :mod:`.kinds` and the masks' helpers in
 :mod:`.masks`.
 
 Arrays: images are ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA ``uint8``; masks are
@@ -28,8 +29,11 @@ in textured scenes), GrabCut seeded where colours are rare on the border (weight
 spectral-residual saliency), GrabCut from a centred rectangle, and two GrabCuts seeded
 by boundary-connectivity saliency on superpixels (:mod:`jeanscv.subject.saliency`).
 The one the others agree with most, along strong colour edges, wins
-(:mod:`jeanscv.subject.consensus`) and is refined at working resolution; ``details``
-records every hypothesis's measures and the reason.
+(:mod:`jeanscv.subject.consensus`); the ``subject`` asked for (``auto``: an animal
+rather than the person beside it, ``animal``, ``person``, ``object``) then keeps the
+winner or some pieces of the hypotheses (:mod:`jeanscv.subject.kinds`), which are
+refined at working resolution; ``details`` records every hypothesis's measures, the
+reason, the ``kind`` found and whether the subject is ``uncertain`` (its ``doubts``).
 """
 
 from __future__ import annotations
@@ -38,12 +42,14 @@ import copy
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from jeanscv.errors import JeansError
-from jeanscv.options import SILHOUETTE_METHODS
+from jeanscv.options import SILHOUETTE_METHODS, SUBJECTS
 
 from .grabcut import HYPOTHESIS_ITERATIONS, grabcut, grabcut_coarse_best, grabcut_or_none, refine
 from .masks import (
@@ -51,7 +57,6 @@ from .masks import (
     MIN_AREA_FRACTION,
     RIM_ONLY,
     binarise,
-    border_contact,
     clean,
     clean_mask,
     downscale,
@@ -61,12 +66,14 @@ from .masks import (
     rim_fraction,
     shape_for,
 )
-from .scene import Scene, rgb_to_lab
+from .scene import Scene
+from .threshold import threshold_split as _threshold
+
+if TYPE_CHECKING:  # the kind cues load OpenCV's people detector, on first use
+    from .kinds import KindCues
 
 #: :func:`segment`'s methods: the named ones, and ``mask`` (a given mask, cleaned).
 METHODS = (*SILHOUETTE_METHODS, "mask")
-
-_BLUR_MARGIN = 0.02  # texture-blurred thresholds must beat sharp ones by this score
 
 
 @dataclass
@@ -100,72 +107,6 @@ def _alpha_meaningful(alpha: np.ndarray) -> bool:
     """An alpha channel is a silhouette when 0.5%..98% of the image is opaque (>= 128)."""
     fraction = float((alpha >= 128).mean())
     return MIN_AREA_FRACTION <= fraction <= FULL_FRACTION
-
-
-def _channels(rgb: np.ndarray) -> dict[str, np.ndarray]:
-    """Candidate 8-bit channels for thresholding: grey, HSV saturation, Lab a and b."""
-    hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)
-    lab = rgb_to_lab(rgb)
-    return {
-        "grey": cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY),
-        "saturation": hsv[..., 1],
-        "lab_a": lab[..., 1],
-        "lab_b": lab[..., 2],
-    }
-
-
-def _split(channel: np.ndarray, threshold: float) -> tuple[np.ndarray, str]:
-    """Split at ``threshold``; the object is the side touching less of the border."""
-    light = channel >= threshold
-    if border_contact(light) <= border_contact(~light):
-        return light, "light"
-    return ~light, "dark"
-
-
-def _threshold(rgb: np.ndarray, threshold: float | None, scene: Scene) -> tuple[np.ndarray, dict]:
-    """``grey >= threshold`` when given, else the best-scoring Otsu split among
-    grey / saturation / Lab a / Lab b, each lightly blurred (and texture-blurred when
-    the scene is scored at its texture scale).
-    Returns the cleaned working mask and what was chosen."""
-    if threshold is not None:
-        raw, polarity = _split(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), threshold)
-        cleaned = clean(raw)
-        info = {"channel": "grey", "blur_sigma": 0.0, "threshold": float(threshold), "polarity": polarity}
-        return cleaned, {**info, "features": scene.features(cleaned)}
-    best: tuple[np.ndarray, dict] | None = None
-    best_rank = -np.inf
-    scores = {}
-    sharp = max(1.0, 0.002 * max(rgb.shape[:2]))
-    # Texture-blurred channels only where the scene is scored at its texture scale:
-    # elsewhere they never won (the same masks on 18 real and 96 synthetic photos
-    # without them), and they are half of this function's time.
-    blurs = (sharp, scene.texture_sigma * scene.factor) if scene.scale == "texture" else (sharp,)
-    for sigma in blurs:
-        blurred = cv2.GaussianBlur(rgb, (0, 0), sigma)
-        for name, channel in _channels(blurred).items():
-            if int(channel.max()) == int(channel.min()):
-                continue
-            value, _ = cv2.threshold(channel, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-            # Otsu's value t keeps pixels > t, i.e. >= t + 1 on integers.
-            raw, polarity = _split(channel, value + 1)
-            cleaned = clean(raw)
-            features = scene.features(cleaned)
-            key = f"{name}@{sigma:.1f}"
-            scores[key] = features["score"]
-            info = {
-                "channel": name,
-                "blur_sigma": round(sigma, 2),
-                "threshold": float(value + 1),
-                "polarity": polarity,
-                "features": features,
-            }
-            # Blurring smooths boundaries: only take it when clearly better.
-            rank = features["score"] - (0.0 if sigma == sharp else _BLUR_MARGIN)
-            if rank > best_rank:
-                best, best_rank = (cleaned, info), rank
-    if best is None or best[1]["features"]["score"] <= 0:
-        raise JeansError("no object found to segment")
-    return best[0], {**best[1], "scores": scores}
 
 
 class _Inline:
@@ -281,12 +222,21 @@ class PreparedScene:
                 mask.flags.writeable = False
         return cls(rgb, scene, found, "", details)
 
+    @cached_property
+    def cues(self) -> KindCues:
+        """What kind of thing the candidates are (:mod:`jeanscv.subject.kinds`), each
+        cue computed on first use."""
+        from .kinds import KindCues
+
+        return KindCues(self.scene.rgb, self.rgb)
+
     @property
     def nbytes(self) -> int:
         """About the memory it holds: the copy, the scene's planes (measured: 23 times
         its coarse copy, 5.7 MB for a 640-pixel copy) and the masks."""
         masks = () if self.found is None else (*self.found.coarse.values(), self.found.threshold_mask)
-        return self.rgb.nbytes + 24 * self.scene.rgb.nbytes + sum(m.nbytes for m in masks if m is not None)
+        cues = self.__dict__["cues"].nbytes if "cues" in self.__dict__ else 0  # once the subject's kind was asked
+        return self.rgb.nbytes + 24 * self.scene.rgb.nbytes + sum(m.nbytes for m in masks if m is not None) + cues
 
 
 class SharedHypotheses:
@@ -320,11 +270,15 @@ class SharedHypotheses:
         return 0 if held is None else held.nbytes
 
 
-def _auto(rgb: np.ndarray, prepared: PreparedScene, details: dict) -> tuple[np.ndarray, str]:
+def _auto(
+    rgb: np.ndarray, prepared: PreparedScene, details: dict, subject: str = "auto", several: bool = False
+) -> tuple[np.ndarray, str]:
     """Every hypothesis at coarse resolution, the consensus pick
-    (:mod:`jeanscv.subject.consensus`) at working resolution: the threshold split as
-    it is, a GrabCut hypothesis refined along its boundary."""
+    (:mod:`jeanscv.subject.consensus`), then the ``subject`` choice among its pieces
+    (:func:`jeanscv.subject.kinds.choose_kind`), at working resolution: the threshold
+    split as it is, a GrabCut hypothesis or a chosen piece refined along its boundary."""
     from .consensus import choose
+    from .kinds import choose_kind
 
     details.update(copy.deepcopy(prepared.details))
     found, scene = prepared.found, prepared.scene
@@ -349,14 +303,28 @@ def _auto(rgb: np.ndarray, prepared: PreparedScene, details: dict) -> tuple[np.n
     }
     details["chosen"] = winner
     details["consensus"] = round(best.consensus, 4)
-    details["uncertain"] = best.uncertain
     bands = [c.name for c in ranked if c.band]
-    details["reason"] = (
+    reason = (
         f"{winner} agrees most with the other {len(ranked) - len(bands) - 1} hypotheses (mean IoU {best.consensus:.2f}) "
         f"along strong colour edges (contrast {best.contrast:.2f}; border-colour agreement {best.agreement:.2f})"
         + (f"; left out as horizon bands across the frame: {', '.join(bands)}" if bands else "")
-        + ("; the hypotheses mostly disagree, so the subject is uncertain" if best.uncertain else "")
     )
+    kind = choose_kind(prepared.cues, [c for c in ranked if not c.band], winner, subject, several)
+    details["subject"], details["kind"] = subject, kind.kind
+    doubts = list(best.doubts)
+    if kind.pieces:
+        source = next(c for c in ranked if c.name == kind.pieces[0].source)
+        doubts = list(source.doubts)
+        details["pieces"] = [piece.summary() for piece in kind.pieces]
+    if kind.reason:
+        reason += f"; {kind.reason}"
+    if not kind.found:
+        doubts.insert(0, f"no {subject} found")
+    details["uncertain"] = bool(doubts)
+    details["doubts"] = doubts
+    details["reason"] = reason + ("; unsure: " + ", ".join(doubts) if doubts else "")
+    if kind.pieces and not np.array_equal(kind.mask, usable[winner]):
+        return refine(rgb, kind.mask, scene, "colour", source_width=scene.hypothesis_size[0]), "grabcut"
     if winner == "threshold":
         return found.threshold_mask, "threshold"
     variant = found.grabcut_variant if winner == "grabcut" else "colour"
@@ -404,6 +372,8 @@ def segment(
     mask: np.ndarray | None = None,
     working_size: int = 640,
     shared: SharedHypotheses | None = None,
+    subject: str = "auto",
+    several: bool = False,
 ) -> Segmentation:
     """Segment the main object of ``image`` ((H, W, 3) RGB or (H, W, 4) RGBA uint8).
 
@@ -419,7 +389,12 @@ def segment(
     Work happens at ``working_size`` (long side, pixels); the mask is upsampled, with
     a given alpha or mask deciding the boundary band at full resolution. ``shared``:
     auto's hypotheses, cut once for this call and a click session of the same photo
-    (:class:`SharedHypotheses`); the result is the same.
+    (:class:`SharedHypotheses`); the result is the same. ``subject`` (auto only): what
+    to find, ``auto`` (an animal beside a person rather than the person), ``animal``,
+    ``person`` or ``object`` (the most salient thing, whatever it is); ``several``:
+    every animal found rather than the most prominent one (``--objects all``). See
+    :mod:`jeanscv.subject.kinds`; ``details`` say which ``kind`` was found and whether
+    the subject is ``uncertain`` (with the ``doubts``).
 
     Returns a :class:`Segmentation` at the input's resolution. Raises JeansError for bad
     input, for no plausible object (empty or under 0.5% of the image) and, for photo
@@ -429,6 +404,8 @@ def segment(
     of all of it (the user said so).
     """
     arguments = _check_arguments(method, image, threshold, rect, mask, working_size)
+    if subject not in SUBJECTS:
+        raise JeansError(f"unknown subject {subject!r} (use {', '.join(SUBJECTS)})")
     height, width = arguments.rgb.shape[:2]
     size = shape_for((height, width), int(working_size))
     details: dict = {"working_shape": (size[1], size[0])}
@@ -441,7 +418,9 @@ def segment(
     else:
         rgb = downscale(arguments.rgb, size)
         factor = width / size[0]
-        working, used = _segment_photo(rgb, method, arguments.threshold, arguments.rect, factor, details, shared)
+        working, used = _segment_photo(
+            rgb, method, arguments.threshold, arguments.rect, factor, details, shared, subject, several
+        )
     _check_area(working, photo, details)
     full = _full_resolution(working, given, size, (width, height))
     contour = outer_contour(working, (width / size[0], height / size[1]))
@@ -557,13 +536,16 @@ def _segment_photo(
     factor: float,
     details: dict,
     shared: SharedHypotheses | None = None,
+    subject: str = "auto",
+    several: bool = False,
 ) -> tuple[np.ndarray, str]:
     """threshold / grabcut / auto on the working-size RGB; returns (clean mask, method).
 
-    auto weighs every hypothesis by consensus (:func:`_auto`); ``shared`` may hold them.
+    auto weighs every hypothesis by consensus, then takes the ``subject`` asked for
+    (:func:`_auto`); ``shared`` may hold the hypotheses.
     """
     if method == "auto":
-        return _auto(rgb, (shared or SharedHypotheses()).of(rgb), details)
+        return _auto(rgb, (shared or SharedHypotheses()).of(rgb), details, subject, several)
     scene = Scene(rgb)
     if method == "threshold":
         mask, info = _threshold(rgb, threshold, scene)

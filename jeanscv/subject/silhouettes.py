@@ -14,6 +14,13 @@ from ..errors import JeansError
 from ..geometry import CANVAS_SIZE, mask_box
 from .framing import Framing, frame_mask, identity_framing
 
+#: The auto segmentation's ``details`` that say which subject it took and how sure it is:
+#: the winning hypothesis, why it won, its mean IoU with the others, the subject asked
+#: for (``subject``: auto, animal, person, object) and the kind found, whether it may be
+#: the wrong thing (``uncertain``) and why (``doubts``). The report gives them as
+#: ``subject``; each object split from the subject keeps them.
+SUBJECT_KEYS = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts")
+
 
 @dataclass
 class Silhouette:

@@ -19,6 +19,7 @@ async function upload(file) {
   setStatus(`Putting jeans on ${file.name}…`, true);
   const form = new FormData();
   form.append("file", file, file.name);
+  form.append("subject", $("subject").value);
   try {
     const answer = await post("/api/photos", form);
     start(answer, null);
