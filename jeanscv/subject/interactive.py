@@ -215,12 +215,13 @@ class ClickSession:
         inside = _box_mask(box, self.rgb.shape[:2])
         if clicks:
             previous = self._boxed(box, clicks[:-1])
-            # The box's object stays, whatever the clicks add: its deepest point stands
-            # for it beside the positive clicks (a click on a missed paw that the
-            # geodesic step does not join to the body used to leave the paw alone).
+            # The box's object stays, whatever the clicks add: its deepest point is kept
+            # beside the positive clicks (a click on a missed paw that the geodesic step
+            # does not join to the body used to leave the paw alone). It is no click: a
+            # negative click often lands right there (a box round a thin thing holds
+            # mostly background), and as a positive one it kept that pixel alone.
             stand_in = _largest_piece_point(previous)
-            steps = tuple(("+", p) for p in stand_in) + clicks
-            mask = self._step(previous, steps) & inside if previous.any() else previous
+            mask = self._step(previous, clicks, keep=stand_in) & inside if previous.any() else previous
             # Local: the box already found the object, so a click changes only what lies
             # within a quarter of the box's diagonal of it (a negative click on the
             # background between a dog's legs must not take the dog).
@@ -350,7 +351,7 @@ class ClickSession:
             return _constrained(np.zeros(graph.labels.shape, bool), [point], [])
         return _constrained(region[graph.labels], [point], [])
 
-    def _step(self, previous: np.ndarray, clicks: tuple) -> np.ndarray:
+    def _step(self, previous: np.ndarray, clicks: tuple, keep: Sequence[tuple[int, int]] = ()) -> np.ndarray:
         """The mask after one more click, from the mask before it.
 
         The click says that the region around it is on the wrong side. On the
@@ -361,7 +362,9 @@ class ClickSession:
         ``_CORE_PRICE``, the rest of the wrong side farther than ``_CORE_REACH`` times
         the click's depth, so a click takes what it reaches without crossing an edge
         (a whole sky) but not what lies beyond one. A positive click off the mask may
-        add a piece of auto's hypotheses instead (:meth:`_with_pieces`).
+        add a piece of auto's hypotheses instead (:meth:`_with_pieces`). The pieces kept:
+        those with a positive click or a pixel of ``keep`` (when still in), else the
+        largest.
         """
         sign, (x, y) = clicks[-1]
         graph = self._graph
@@ -394,7 +397,8 @@ class ClickSession:
         if sign == "+" and not previous[y, x]:
             mask = self._with_pieces(previous, mask, (x, y), neg)
         # Negative clicks alone (the automatic subject minus them): its largest piece stays.
-        return _constrained(mask, pos or _largest_piece_point(mask), neg)
+        held = pos + [(kx, ky) for kx, ky in keep if mask[ky, kx]]
+        return _constrained(mask, held or _largest_piece_point(mask), neg)
 
     def _with_pieces(self, previous: np.ndarray, grown: np.ndarray, point, neg: list) -> np.ndarray:
         """A positive click outside the mask: of the geodesic growth and the pieces of
