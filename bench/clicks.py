@@ -15,7 +15,9 @@ negative where background was taken. Prints per photo and on average the IoU aft
 3 and 5 clicks, NoC@85 and NoC@90 (clicks needed, at most 10; 10 counts a photo that
 never gets there), the time to set the image, the first click's time (it chooses among
 auto's hypotheses and cuts a GrabCut) and the median time of the later clicks; the
-means row gives medians of the times.
+means row gives medians of the times. With several sets, a line per set also counts the
+empty answers and the harmful clicks (ones that lowered the IoU by more than 0.05), and
+``--sheet S.jpg`` writes ``S-SET.jpg`` for each.
 """
 
 from __future__ import annotations
@@ -159,16 +161,37 @@ def main() -> None:
     sets = [(folder, pairs) for folder, pairs in sets if pairs]
     if not sets:
         raise SystemExit(f"no NAME.mask.png with a photo beside it in {', '.join(map(str, folders))}")
-    means = [(folder, run_set(pairs, args)) for folder, pairs in sets]
+    sheets = {folder: _sheet_path(args.sheet, folder, len(sets) > 1) for folder, _ in sets}
+    means = [(folder, run_set(pairs, args, sheets[folder])) for folder, pairs in sets]
     if len(means) > 1 or args.box:
         print()
-        print(f"| set | {'box | ' if args.box else ''}IoU@1 | IoU@3 | IoU@5 | NoC@85 | IoU@1 >= 0.5 | empty answers |")
-        print(f"|---|{'---:|' if args.box else ''}---:|---:|---:|---:|---:|---:|")
+        print(
+            f"| set | {'box | ' if args.box else ''}IoU@1 | IoU@3 | IoU@5 | NoC@85 | IoU@1 >= 0.5 | empty answers "
+            "| harmful clicks |"
+        )
+        print(f"|---|{'---:|' if args.box else ''}---:|---:|---:|---:|---:|---:|---:|")
         for folder, line in means:
             print(f"| {folder.name} | {line} |")
 
 
-def run_set(pairs: list, args) -> str:
+def _sheet_path(sheet: Path | None, folder: Path, several: bool) -> Path | None:
+    """Where a set's contact sheet goes: ``--sheet`` itself, or with several sets
+    ``NAME-SET.EXT`` beside it."""
+    if sheet is None or not several:
+        return sheet
+    return sheet.with_name(f"{sheet.stem}-{folder.name}{sheet.suffix}")
+
+
+def harmful(result: dict) -> tuple[int, int]:
+    """(clicks that lowered the IoU by more than 0.05, clicks made) of one photo's run
+    (after a box, the first click is compared with the box alone)."""
+    before = [result["box_iou"]] if "box_iou" in result else []
+    made = len(result["clicks"])
+    ious = before + result["ious"][:made]
+    return sum(b < a - 0.05 for a, b in zip(ious, ious[1:])), made
+
+
+def run_set(pairs: list, args, sheet_path: Path | None = None) -> str:
     """Simulate every photo of one set; prints its table and returns its means' row."""
     print("| photo | IoU@1 | IoU@2 | IoU@3 | IoU@5 | NoC@85 | NoC@90 | set-up s | first click s | s/click |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -192,7 +215,7 @@ def run_set(pairs: list, args) -> str:
             f"| {statistics.median(result['seconds'][1:] or result['seconds']):.3f} |",
             flush=True,
         )
-        if args.sheet:
+        if sheet_path:
             sheet.append((name, pixels, result["after_three"], result["clicks"][:3], ious[2]))
 
     def mean(key, index=None):
@@ -206,15 +229,16 @@ def run_set(pairs: list, args) -> str:
         f"| **{mean('noc90'):.2f}** | **{statistics.median([r['setup'] for r in results]):.2f}** "
         f"| **{statistics.median([r['seconds'][0] for r in results]):.3f}** | **{statistics.median(later):.3f}** |"
     )
-    if args.sheet:
-        contact_sheet(sheet, args.sheet)
-        print(f"contact sheet: {args.sheet}")
+    if sheet_path:
+        contact_sheet(sheet, sheet_path)
+        print(f"contact sheet: {sheet_path}")
     usable = sum(r["ious"][0] >= 0.5 for r in results)
     empty = sum(value < 0.001 for r in results for value in r["ious"] + [r.get("box_iou", 1.0)])
     box = f"{mean('box_iou'):.3f} | " if args.box else ""
+    worse, made = (sum(values) for values in zip(*(harmful(r) for r in results)))
     return (
         f"{box}{mean('ious', 0):.3f} | {mean('ious', 2):.3f} | {mean('ious', 4):.3f} | {mean('noc85'):.2f} "
-        f"| {usable} of {len(results)} | {empty}"
+        f"| {usable} of {len(results)} | {empty} | {worse} of {made} ({100 * worse / max(made, 1):.1f}%)"
     )
 
 
