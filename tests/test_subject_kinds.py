@@ -238,3 +238,13 @@ def test_the_unsure_count_comes_before_the_summary_and_not_when_quiet():
         else:
             unsure = "jeanscv: 1 of 3 may have the wrong subject: `jeanscv serve photos/` shows them first"
             assert lines[-2:] == [unsure, summary] and summary.startswith("3 ok, 0 failed, 0 skipped in ")
+
+
+@pytest.mark.parametrize("shape", [(96, 128), (200, 40), (128, 64)])
+def test_the_people_detector_skips_copies_smaller_than_its_window(shape):
+    """OpenCV's HOG detector crashed the process on a 128x96 photo (smaller than its
+    64x128 window); a copy of exactly the window's size is searched."""
+
+    rgb = np.full((*shape, 3), 128, np.uint8)
+    people = KindCues(rgb, rgb).people
+    assert people.shape == shape and not people.any()

@@ -110,11 +110,17 @@ class KindCues:
 
     @cached_property
     def people(self) -> np.ndarray:
-        """``(h, w) bool``: inside a HOG person box (margin over :data:`_HOG_MARGIN`)."""
-        boxes, weights = _people_detector().detectMultiScale(
-            cv2.cvtColor(self.rgb, cv2.COLOR_RGB2BGR), winStride=(8, 8), scale=1.05
-        )
+        """``(h, w) bool``: inside a HOG person box (margin over :data:`_HOG_MARGIN`);
+        none in a copy smaller than the detector's window."""
         inside = np.zeros(self.rgb.shape[:2], bool)
+        detector = _people_detector()
+        window_width, window_height = detector.winSize
+        if self.rgb.shape[0] < window_height or self.rgb.shape[1] < window_width:
+            # OpenCV's detectMultiScale crashes the process (a segmentation fault) on an
+            # image smaller than its window: a 128x96 photo did.
+            return inside
+        bgr = np.ascontiguousarray(cv2.cvtColor(self.rgb, cv2.COLOR_RGB2BGR))
+        boxes, weights = detector.detectMultiScale(bgr, winStride=(8, 8), scale=1.05)
         for (x, y, w, h), weight in zip(np.reshape(boxes, (-1, 4)), np.ravel(weights)):
             if weight > _HOG_MARGIN:
                 inside[max(y, 0) : y + h, max(x, 0) : x + w] = True
