@@ -3,7 +3,7 @@
 // This module loads the options and wires the page; each concern is a module beside it.
 import { updateCaptions } from "./captions.js";
 import { watchFit } from "./drawing.js";
-import { addClick, newObject, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { addClick, leavePhoto, newObject, rerender, reset, setMode, undo, upload } from "./editor.js";
 import { loadGallery, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -68,6 +68,7 @@ function wire() {
   $("result").addEventListener("load", updateCaptions);
   window.addEventListener("resize", updateCaptions);
   $("another").addEventListener("click", () => {
+    leavePhoto();
     state.photo = null;
     state.result = null;
     $("view").hidden = true;

@@ -42,30 +42,40 @@ function drawOverlay(animatedJeans = null) {
 }
 
 // ------------------------------------------------------------------ the fit, animated
+// The animation plays the shown result's fit over the photo; a new result (a click
+// answered mid-way) or another photo stops it, and the picture shown is always the
+// newest result's, never one the animation put aside.
 function watchFit() {
   const answer = state.result;
   if (!answer || state.animating) return;
   state.animating = true;
+  const run = ++state.animation;
   const image = $("result");
-  const finished = image.src;
   image.src = `/api/photos/${state.photo}/original`;
   const frames = Math.max(...answer.objects.map((o) => o.trajectory.length));
   const began = performance.now();
   const duration = 2500;
   const step = (now) => {
+    if (run !== state.animation) return;
     const index = Math.min(frames - 1, Math.floor(((now - began) / duration) * frames));
     drawOverlay(answer.objects.map((o) => o.trajectory[Math.min(index, o.trajectory.length - 1)]));
     if (index < frames - 1) {
       requestAnimationFrame(step);
     } else {
       setTimeout(() => {
-        image.src = finished;
-        state.animating = false;
-        drawOverlay();
+        if (run === state.animation) stopAnimation();
       }, 700);
     }
   };
   requestAnimationFrame(step);
 }
 
-export { drawOverlay, watchFit };
+function stopAnimation() {
+  if (!state.animating) return;
+  state.animation += 1;
+  state.animating = false;
+  if (state.result) $("result").src = state.result.preview;
+  drawOverlay();
+}
+
+export { drawOverlay, stopAnimation, watchFit };

@@ -1,6 +1,6 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
-import { drawOverlay } from "./drawing.js";
+import { drawOverlay, stopAnimation } from "./drawing.js";
 import { post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -9,6 +9,17 @@ function renderOptions() {
 }
 
 // ------------------------------------------------------------------ upload
+// Every answer belongs to one photo: leaving a photo (another dropped or opened, or
+// "Another photo") starts a new generation, and an answer of an older one is dropped.
+function leavePhoto() {
+  state.generation += 1;
+  state.inFlight = false;
+  state.again = false;
+  state.clickPending = false;
+  stopAnimation();
+  return state.generation;
+}
+
 async function upload(file) {
   if (!file) return;
   showError("");
@@ -16,13 +27,15 @@ async function upload(file) {
     showError(`${file.name}: the file is larger than the server's upload limit (${Math.round(state.maxUpload / 1048576)} MB)`);
     return;
   }
+  const generation = leavePhoto();
   setStatus(`Putting jeans on ${file.name}…`, true);
   const form = new FormData();
   form.append("file", file, file.name);
   try {
     const answer = await post("/api/photos", form);
-    start(answer, null);
+    if (generation === state.generation) start(answer, null);
   } catch (error) {
+    if (generation !== state.generation) return;
     setStatus("");
     showError(error.message);
   }
@@ -53,6 +66,7 @@ function start(answer, item) {
 // ------------------------------------------------------------------ results
 function show(answer) {
   state.result = answer;
+  stopAnimation();
   const image = $("result");
   image.src = answer.preview;
   const svg = $("overlay");
@@ -65,6 +79,12 @@ function show(answer) {
     link.classList.toggle("disabled", kind === "clicks" && !answer.clicks);
   }
   updateMemeLink();
+  describe(answer);
+}
+
+// The status line for a result: its photo, how many objects, and where they came from.
+function describe(answer) {
+  if (!answer) return;
   const summary = answer.summary;
   const count = summary.objects === 1 ? "1 object" : `${summary.objects} objects`;
   let text = `${state.name}: ${count}, ${answer.clicks ? "from your clicks" : `found by ${summary.method}`}.`;
@@ -86,24 +106,29 @@ async function rerender() {
   const fromClick = state.clickPending;
   state.clickPending = false;
   const sequence = ++state.sequence;
+  const generation = state.generation;
   setStatus("Fitting…", true);
   try {
     const objects = state.objects.filter((o) => o.positive.length > 0);
     const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
+    if (generation !== state.generation) return; // another photo since: not this one's
     if (sequence > state.shown) {
       state.shown = sequence;
       showError("");
       if (!state.again) show(answer);
     }
   } catch (error) {
-    setStatus("");
+    if (generation !== state.generation) return;
     showError(error.message);
     // A click the server could not use ("nothing found there") is taken back: the
     // picture, outline and markers stay as they were before it.
     if (fromClick && error.status === 422 && !state.again) takeBack();
+    else setStatus("");
   } finally {
-    state.inFlight = false;
-    if (state.again) rerender();
+    if (generation === state.generation) {
+      state.inFlight = false;
+      if (state.again) rerender();
+    }
   }
 }
 
@@ -113,6 +138,7 @@ function takeBack() {
   state.objects[last.object][last.sign].pop();
   drawOverlay();
   updateControls();
+  describe(state.result);
 }
 
 // ------------------------------------------------------------------ clicks
@@ -206,4 +232,4 @@ function updateControls() {
   });
 }
 
-export { addClick, newObject, rerender, reset, setMode, start, undo, upload };
+export { addClick, leavePhoto, newObject, rerender, reset, setMode, start, undo, upload };

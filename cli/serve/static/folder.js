@@ -1,5 +1,5 @@
 // Folder mode (jeanscv serve FOLDER): the gallery, opening a photo, saving its clicks.
-import { start } from "./editor.js";
+import { leavePhoto, start } from "./editor.js";
 import { answerOf, post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -59,11 +59,14 @@ async function openItem(item, tile) {
   showError("");
   setStatus(`Opening ${item.name}…`, true);
   for (const other of document.querySelectorAll(".tile")) other.classList.toggle("open", other === tile);
+  const generation = leavePhoto();
   try {
     const answer = await post(`/api/folder/${item.item}/open`, {});
+    if (generation !== state.generation) return; // another photo was opened since
     start(answer, item.item);
     window.scrollTo({ top: $("editor").offsetTop, behavior: "smooth" });
   } catch (error) {
+    if (generation !== state.generation) return;
     setStatus("");
     showError(error.message);
   }

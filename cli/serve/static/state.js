@@ -22,6 +22,8 @@ const state = {
   again: false,
   clickPending: false, // the next render was asked for by a click (taken back if it fails)
   animating: false,
+  animation: 0, // the running animation's number (a newer one, or a stop, ends it)
+  generation: 0, // the photo's number: answers for an earlier one are dropped
 };
 
 function setStatus(text, busy = false) {
