@@ -346,6 +346,14 @@ def test_folder_fix_with_clicks(make_client, folder):
     # Another folder item's name cannot take these clicks.
     other = client.post("/api/folder/0/clicks", json={"photo": photo, "objects": [{"positive": [point]}]})
     assert other.status_code == 422
+    # Back to automatic: only when said outright; the clicks file goes, the output is made again.
+    clicked_output = (folder / "pets.jeans.png").read_bytes()
+    assert client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": []}).status_code == 422
+    reverted = client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": [], "revert": True})
+    assert reverted.status_code == 200, reverted.text
+    assert reverted.json()["clicks"] is False and not sidecar_path(folder / "pets.png").exists()
+    assert (folder / "pets.jeans.png").read_bytes() != clicked_output
+    assert client.post(f"/api/folder/{index}/open").json()["clicks"] is False
 
 
 def test_folder_clicks_replay_through_the_command_line(make_client, folder, run_cli):

@@ -228,7 +228,7 @@ def test_drop_click_caption_download(server, page, tmp_path):
         jpeg = shot.lower().endswith((".jpg", ".jpeg"))
         page.screenshot(path=shot, type="jpeg" if jpeg else "png", quality=88 if jpeg else None)
     saved = _download(page, "#dl-meme", tmp_path)
-    assert saved.name == "pets.jeans.png"
+    assert saved.name == "pets.meme.png"  # the Image download is pets.jeans.png
     with Image.open(saved) as meme:
         assert meme.size == (800, 500)
         meme_pixels = np.asarray(meme.convert("RGB"))
@@ -461,3 +461,102 @@ def test_watching_the_fit_puts_back_the_newest_picture(server, page):
     assert newest != urlparse(automatic).path and shown == newest, "the automatic picture came back"
     assert page.locator("#overlay circle.click.pos").count() == 1
     assert page.problems == []
+
+
+def test_folder_mode_saves_reverts_and_shows_it_at_once(browser, tmp_path):
+    """Issue 32's sixth bug: tiles showed broken images while thumbnails were made; the
+    "✓ clicks" badge came only after a reload; reopened saved clicks could not be undone;
+    after Reset, Save was disabled, so a fix could not go back to automatic."""
+    from jeanscv.subject.clicks import sidecar_path
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    photo = two_objects()
+    Image.fromarray(photo.image).save(photos / "pets.png")
+    context = browser.new_context(viewport={"width": 1280, "height": 860})
+    try:
+        with _serving({"folder": photos}) as (server, _):
+            page = context.new_page()
+            page.goto(server + "/")
+            page.wait_for_selector(".tile")
+            # While its thumbnail is made the tile says so; no image without a picture.
+            assert page.evaluate(
+                "() => [...document.querySelectorAll('.tile img')].every((i) => i.complete && i.naturalWidth > 0)"
+            )
+            assert page.locator(".tile .placeholder").count() + page.locator(".tile img").count() == 1
+            assert "0 fixed" in page.inner_text("#folder-counts")
+            page.wait_for_function("() => document.querySelector('.tile img.thumb')?.naturalWidth > 0", timeout=90_000)
+
+            page.click(".tile")
+            _wait_for_result(page, "pets.png")
+            _click_photo(page, *inside_point(photo.masks[1]))
+            page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+            page.click("#save")
+            page.wait_for_function(
+                "() => document.getElementById('status').textContent.startsWith('Saved')", timeout=90_000
+            )
+            assert sidecar_path(photos / "pets.png").is_file()
+            assert page.locator(".tile .badge").count() == 1  # at once, no reload
+            assert "1 fixed" in page.inner_text("#folder-counts")
+            assert page.is_disabled("#save")  # nothing new to save
+
+            page.click(".tile")  # opened again: the saved click is back, and can be undone
+            page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+            assert page.locator("#overlay circle.click.pos").count() == 1
+            assert page.is_enabled("#undo")
+
+            page.click("#reset")
+            assert page.locator("#overlay circle.click").count() == 0  # the marker goes at once
+            _wait_for_result(page, "pets.png")
+            assert page.inner_text("#save") == "Revert to automatic" and page.is_enabled("#save")
+            dialogs = []
+            page.once("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.accept()))
+            page.click("#save")
+            page.wait_for_function(
+                "() => document.getElementById('status').textContent.startsWith('Reverted')", timeout=90_000
+            )
+            assert "pets.clicks.json" in dialogs[0]
+            assert not sidecar_path(photos / "pets.png").exists()
+            assert page.locator(".tile .badge").count() == 0
+            assert "0 fixed" in page.inner_text("#folder-counts")
+            page.click("#another")
+            assert "not added to the folder" in page.inner_text("#drop")  # the second drop zone says what it does
+    finally:
+        context.close()
+
+
+def test_reset_undo_downloads_and_the_empty_page(server, page, browser, tmp_path):
+    """Issue 32's seventh list: the empty state centred; Reset clears the markers at once
+    and can be undone; Meme and Image download under different names; a phone is asked
+    to tap, not to drop."""
+    page.add_init_script(HOLD_ANSWERS)
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    drop = page.locator("#drop").bounding_box()
+    middle = page.evaluate("() => document.documentElement.clientWidth / 2")
+    assert abs(drop["x"] + drop["width"] / 2 - middle) < 2, (drop, middle)
+
+    photo = two_objects()
+    _drop_photo(page, photo.image)
+    _click_photo(page, *inside_point(photo.masks[0]))
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.evaluate("() => { window.__hold = true; }")
+    page.click("#reset")
+    assert page.locator("#overlay circle.click").count() == 0  # before the automatic result is in
+    _let_go(page, "/render")
+    page.evaluate("() => { window.__hold = false; }")
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('found by')")
+    page.click("#undo")  # the Reset undone: the click is back
+    assert page.locator("#overlay circle.click.pos").count() == 1
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+
+    names = {_download(page, button, tmp_path).name for button in ("#dl-meme", "#dl-image")}
+    assert names == {"pets.meme.png", "pets.jeans.png"}
+
+    phone = browser.new_context(viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True)
+    try:
+        small = phone.new_page()
+        small.goto(server + "/")
+        assert small.inner_text("#drop .drop-title") == "Tap to choose a photo"
+    finally:
+        phone.close()

@@ -430,7 +430,7 @@ class _Api:
             return _error(422, "this photo is not that folder item")
         try:
             clicks = engine.clicks_from_json(data.get("objects"), photo.size)
-            if clicks is None:
+            if clicks is None and data.get("revert") is not True:  # reverting to automatic is said outright
                 raise JeansError("no clicks to save: click the subject first")
         except JeansError as exc:
             return _error(422, f"{photo.name}: {exc}")

@@ -368,7 +368,8 @@ def encode_preview(pixels: np.ndarray) -> bytes:
 
 
 def output_name(photo: Photo, suffix: str) -> str:
-    """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs."""
+    """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs (the
+    meme is ``NAME.meme.EXT``: saved beside the image, neither replaces the other)."""
     return Path(photo.name).stem + ".jeans" + suffix
 
 
@@ -389,7 +390,8 @@ def download(
         wanted = options if kind == "meme" else replace(options, top="", bottom="", side_by_side=False)
         pixels = worker.picture(result, wanted.jeans_options(None))
         target = Path(output_name(photo, picture_suffix))
-        return encode_picture(target, pixels, result), target.name
+        name = Path(photo.name).stem + ".meme" + picture_suffix if kind == "meme" else target.name
+        return encode_picture(target, pixels, result), name
     if kind == "json":
         return report_text(result, job.display, str(job.outputs["image"])).encode("utf-8"), output_name(photo, ".json")
     if kind == "svg":
@@ -452,10 +454,18 @@ def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> None
         raise JeansError(outcome.error)
 
 
-def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) -> None:
+def save_clicks(job: Job, clicks: Clicks | None, backend: str | None, max_pixels: int) -> None:
     """Save the folder photo's clicks beside it, then make its output from them as the
-    command line does; JeansError with the reason when that fails."""
-    write_clicks(sidecar_path(job.path), clicks)
+    command line does; JeansError with the reason when that fails. ``clicks`` None
+    reverts the photo to automatic: its clicks file is removed and the output made again."""
+    sidecar = sidecar_path(job.path)
+    if clicks is not None:
+        write_clicks(sidecar, clicks)
+    else:
+        try:
+            sidecar.unlink()
+        except FileNotFoundError:
+            pass
     write_folder_outputs(job, backend, max_pixels)
 
 

@@ -42,6 +42,10 @@ function wire() {
       $("file").click();
     }
   });
+  // A click or tap anywhere on the zone chooses a file too (its button's own click opens it once).
+  drop.addEventListener("click", (e) => {
+    if (!e.target.closest("label")) $("file").click();
+  });
   // Drops anywhere on the page (the drop zone's bubble up here): one upload per drop.
   document.addEventListener("dragover", (e) => {
     e.preventDefault();

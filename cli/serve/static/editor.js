@@ -51,6 +51,7 @@ function start(answer, item) {
   state.objects = [];
   state.current = 0;
   state.history = [];
+  state.saved = null;
   $("drop").hidden = true;
   $("view").hidden = false;
   $("panel").hidden = false;
@@ -58,7 +59,11 @@ function start(answer, item) {
   $("original").src = `/api/photos/${answer.photo}/original`;
   if (answer.clicks && answer.saved_clicks) {
     state.objects = answer.saved_clicks.map((o) => ({ positive: o.positive, negative: o.negative }));
+    // Each saved click is one step to undo, as if it had just been made.
+    state.history = state.objects.flatMap((o, object) => ["positive", "negative"].flatMap(
+      (sign) => o[sign].map(() => ({ object, sign }))));
   }
+  if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
   updateControls();
 }
@@ -109,7 +114,7 @@ async function rerender() {
   const generation = state.generation;
   setStatus("Fitting…", true);
   try {
-    const objects = state.objects.filter((o) => o.positive.length > 0);
+    const objects = clickedObjects();
     const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
     if (generation !== state.generation) return; // another photo since: not this one's
     if (sequence > state.shown) {
@@ -168,9 +173,26 @@ function addClick(event) {
   rerender();
 }
 
+// The clicks to send: the objects that have a positive click.
+function clickedObjects() {
+  return state.objects.filter((o) => o.positive.length > 0);
+}
+
+function clicksKey() {
+  return JSON.stringify(clickedObjects().map((o) => [o.positive, o.negative]));
+}
+
 function undo() {
   const last = state.history.pop();
   if (!last) return;
+  if (last.reset) { // the clicks a Reset cleared come back
+    state.objects = JSON.parse(last.reset);
+    state.current = last.current;
+    drawOverlay();
+    updateControls();
+    rerender();
+    return;
+  }
   state.objects[last.object][last.sign].pop();
   if (state.objects[last.object].positive.length === 0 && state.objects[last.object].negative.length === 0
       && last.object === state.objects.length - 1 && last.object > 0) {
@@ -183,9 +205,11 @@ function undo() {
 }
 
 function reset() {
+  if (state.objects.length === 0) return;
+  state.history.push({ reset: JSON.stringify(state.objects), current: state.current }); // Undo brings them back
   state.objects = [];
   state.current = 0;
-  state.history = [];
+  drawOverlay(); // the markers go now, not when the automatic result is in
   updateControls();
   rerender();
 }
@@ -215,7 +239,10 @@ function updateControls() {
   $("undo").disabled = !photo || state.history.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
   $("new-object").disabled = !photo || !state.objects.some((o) => o.positive.length > 0);
-  $("save").disabled = !state.objects.some((o) => o.positive.length > 0);
+  // Save what differs from the folder's: new clicks, or none (back to automatic).
+  const clicked = clickedObjects().length > 0;
+  $("save").disabled = state.saved === null || clicksKey() === state.saved;
+  $("save").textContent = clicked || state.saved === clicksKey() ? "Save to folder" : "Revert to automatic";
   const list = $("objects");
   list.replaceChildren();
   state.objects.forEach((object, index) => {
@@ -232,4 +259,4 @@ function updateControls() {
   });
 }
 
-export { addClick, leavePhoto, newObject, rerender, reset, setMode, start, undo, upload };
+export { addClick, clickedObjects, clicksKey, leavePhoto, newObject, rerender, reset, setMode, start, undo, updateControls, upload };

@@ -1,39 +1,65 @@
-// Folder mode (jeanscv serve FOLDER): the gallery, opening a photo, saving its clicks.
-import { leavePhoto, start } from "./editor.js";
+// Folder mode (jeanscv serve FOLDER): the gallery, opening a photo, saving its clicks
+// (or reverting it to automatic).
+import { clickedObjects, clicksKey, leavePhoto, start, updateControls } from "./editor.js";
 import { answerOf, post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
+
+const items = new Map(); // item index -> its listing entry
 
 async function loadGallery() {
   const answer = await answerOf(await fetch("/api/folder"));
   const grid = $("grid");
   grid.replaceChildren();
+  items.clear();
+  $("drop-folder-note").hidden = false;
   const tiles = answer.items.map((item) => {
+    items.set(item.item, item);
     const tile = document.createElement("button");
     tile.type = "button";
     tile.className = "tile";
     tile.dataset.item = item.item;
-    const thumb = document.createElement("img");
-    thumb.className = "thumb";
-    thumb.alt = item.name;
     const name = document.createElement("div");
     name.className = "name";
     name.textContent = item.name;
-    if (item.clicks) {
-      const badge = document.createElement("span");
-      badge.className = "badge";
-      badge.textContent = " \u2713 clicks";
-      name.appendChild(badge);
-    }
-    tile.append(thumb, name);
+    tile.append(placeholder(), name);
+    setBadge(tile, item.clicks);
     tile.addEventListener("click", () => openItem(item, tile));
     grid.appendChild(tile);
-    return { item, tile, thumb };
+    return { item, tile };
   });
+  updateCounts();
   // One thumbnail at a time: each may be made on demand, and the pool is small.
-  for (const { item, tile, thumb } of tiles) await loadThumb(item, tile, thumb);
+  for (const { item, tile } of tiles) await loadThumb(item, tile);
 }
 
-async function loadThumb(item, tile, thumb) {
+// Where a thumbnail will be: a grey box saying it is being made (never a broken image).
+function placeholder() {
+  const box = document.createElement("div");
+  box.className = "thumb placeholder";
+  box.textContent = "making its jeans…";
+  return box;
+}
+
+function setBadge(tile, clicks) {
+  const name = tile.querySelector(".name");
+  let badge = name.querySelector(".badge");
+  if (clicks && !badge) {
+    badge = document.createElement("span");
+    badge.className = "badge";
+    badge.textContent = " \u2713 clicks";
+    name.appendChild(badge);
+  } else if (!clicks && badge) {
+    badge.remove();
+  }
+}
+
+function updateCounts() {
+  const all = [...items.values()];
+  const fixed = all.filter((item) => item.clicks).length;
+  $("folder-counts").textContent = `${all.length} photo${all.length === 1 ? "" : "s"}: ${fixed} fixed with clicks, ${all.length - fixed} automatic.`;
+}
+
+async function loadThumb(item, tile) {
   for (let attempt = 0; attempt < 20; attempt++) {
     // POST: making a missing output writes to the folder, which only this page may ask for.
     const response = await fetch(item.thumb, { method: "POST" });
@@ -41,11 +67,17 @@ async function loadThumb(item, tile, thumb) {
       await new Promise((r) => setTimeout(r, 1000 * (Number(response.headers.get("Retry-After")) || 2)));
       continue;
     }
+    const shown = tile.querySelector(".thumb");
+    tile.querySelector(".bad")?.remove();
     if (response.ok) {
+      const thumb = document.createElement("img");
+      thumb.className = "thumb";
+      thumb.alt = `${item.name} with its jeans`;
       thumb.src = URL.createObjectURL(await response.blob());
+      thumb.addEventListener("load", () => shown.replaceWith(thumb), { once: true });
     } else {
       const data = await response.json().catch(() => ({}));
-      thumb.hidden = true;
+      shown.textContent = "";
       const bad = document.createElement("span");
       bad.className = "bad";
       bad.textContent = data.error || `failed (${response.status})`;
@@ -72,17 +104,33 @@ async function openItem(item, tile) {
   }
 }
 
+// Save the clicks to the folder; with none left (after Reset or Undo), revert the photo
+// to automatic: its clicks file is removed, after a confirmation.
 async function saveToFolder() {
   if (state.item === null) return;
-  setStatus("Saving the clicks and the new output…", true);
+  const objects = clickedObjects();
+  const revert = objects.length === 0;
+  const stem = state.name.replace(/\.[^.]*$/, "");
+  if (revert && !window.confirm(`Revert ${state.name} to automatic? This removes ${stem}.clicks.json from the folder and makes its jeans again without clicks.`)) return;
+  const item = state.item;
+  const key = clicksKey();
+  setStatus(revert ? "Removing the clicks and making the automatic output…" : "Saving the clicks and the new output…", true);
   try {
-    const objects = state.objects.filter((o) => o.positive.length > 0);
-    await post(`/api/folder/${state.item}/clicks`, { photo: state.photo, objects });
-    setStatus(`Saved: ${state.name}'s clicks and its jeans are in the folder; 'jeanscv FOLDER' uses them.`);
-    const tile = document.querySelector(`.tile[data-item="${state.item}"]`);
+    const entry = await post(`/api/folder/${item}/clicks`, revert ? { photo: state.photo, objects: [], revert: true } : { photo: state.photo, objects });
+    items.set(item, { ...items.get(item), clicks: entry.clicks });
+    updateCounts();
+    if (item === state.item) {
+      state.saved = key;
+      updateControls();
+    }
+    setStatus(revert
+      ? `Reverted: ${state.name} is automatic again (its clicks file is removed).`
+      : `Saved: ${state.name}'s clicks and its jeans are in the folder; 'jeanscv FOLDER' uses them.`);
+    const tile = document.querySelector(`.tile[data-item="${item}"]`);
     if (tile) {
-      const item = { item: state.item, thumb: `/api/folder/${state.item}/thumb` };
-      loadThumb(item, tile, tile.querySelector("img"));
+      setBadge(tile, entry.clicks);
+      tile.querySelector(".thumb").replaceWith(placeholder());
+      loadThumb(items.get(item), tile);
     }
   } catch (error) {
     setStatus("");

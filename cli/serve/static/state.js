@@ -13,7 +13,8 @@ const state = {
   height: 0,
   objects: [], // [{positive: [[x, y]], negative: [[x, y]]}]
   current: 0,
-  history: [], // [{object, sign}] for undo
+  history: [], // [{object, sign}] or [{reset, current}] for undo
+  saved: null, // the folder's clicks for this photo (clicksKey()), null outside folder mode
   result: null, // last answer of the server
   negative: false, // the touch toggle
   sequence: 0, // renders sent
