@@ -221,7 +221,7 @@ def test_drop_click_caption_download(server, page, tmp_path):
     assert [path for path, _ in renders].count("/api/photos") == 1  # one drop, one upload
     page.fill("#top", f"how would a {target}")
     page.fill("#bottom", "wear jeans")
-    assert page.inner_text("#cap-top").strip().lower() == f"how would a {target}"
+    _wait_for_captions(page)
     if os.environ.get("JEANSCV_SCREENSHOT"):
         page.wait_for_timeout(300)
         shot = os.environ["JEANSCV_SCREENSHOT"]
@@ -560,3 +560,74 @@ def test_reset_undo_downloads_and_the_empty_page(server, page, browser, tmp_path
         assert small.inner_text("#drop .drop-title") == "Tap to choose a photo"
     finally:
         phone.close()
+
+
+def _wait_for_captions(page) -> None:
+    """Wait until the caption picture over the result is the one for the captions typed."""
+    page.wait_for_function(
+        """() => {
+            const c = document.getElementById('captions');
+            const typed = new URLSearchParams({ top: document.getElementById('top').value,
+                                                bottom: document.getElementById('bottom').value });
+            return !c.hidden && c.complete && c.naturalWidth > 0 && c.src.endsWith('?' + typed);
+        }""",
+        timeout=30_000,
+    )
+
+
+def _element_pixels(page, selector: str) -> np.ndarray:
+    """What the page shows in ``selector``'s box (a screenshot), ``(h, w, 3)`` int RGB."""
+    import io
+
+    with Image.open(io.BytesIO(page.locator(selector).screenshot(type="png", animations="disabled"))) as shot:
+        return np.asarray(shot.convert("RGB")).astype(int)
+
+
+def _ink_box(changed: np.ndarray) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)`` of the changed pixels (x1, y1 inclusive)."""
+    ys, xs = np.nonzero(changed)
+    assert len(xs), "no caption there"
+    return int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())
+
+
+def test_the_caption_preview_is_the_meme_download(server, page, tmp_path):
+    """Issue 32's fourth bug: the live captions were the browser's text, wrapped and sized
+    its own way ("how would a dog" on 2 lines there, 1 in the file). The page now lays the
+    download's own drawing of them over its picture: each caption's box on the screen is
+    the downloaded meme's, within 2 px; text in another script is drawn, an emoji named."""
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    photo = two_objects()
+    _drop_photo(page, photo.image)
+    box = page.locator("#result").bounding_box()
+    assert abs(box["width"] - 800) < 1 and abs(box["height"] - 500) < 1, box  # shown at its own size
+    plain = _element_pixels(page, "#result")
+    page.fill("#top", "how would a dog")
+    page.fill("#bottom", "wear jeans? Как 狗 🐶")
+    _wait_for_captions(page)
+    page.wait_for_timeout(200)
+    if os.environ.get("JEANSCV_CAPTION_SHOT"):
+        page.locator("#frame").screenshot(path=os.environ["JEANSCV_CAPTION_SHOT"])
+    shown = np.abs(_element_pixels(page, "#result") - plain).max(axis=-1) > 60
+    files = {name: _download(page, button, tmp_path) for name, button in (("meme", "#dl-meme"), ("image", "#dl-image"))}
+    with Image.open(files["meme"]) as meme, Image.open(files["image"]) as image:
+        drawn = np.abs(np.asarray(meme.convert("RGB")).astype(int) - np.asarray(image.convert("RGB"))).max(axis=-1) > 60
+    for band in (slice(0, 250), slice(250, 500)):
+        on_screen, in_file = _ink_box(shown[band]), _ink_box(drawn[band])
+        assert np.abs(np.subtract(on_screen, in_file)).max() <= 2, (band, on_screen, in_file)
+    # One line for "how would a dog", as in the file (the browser's own text made it two).
+    top_rows = np.flatnonzero(drawn[:250].any(axis=1))
+    assert top_rows.max() - top_rows.min() < 500 / 8 * 1.3
+    # Side by side: the captions stay on the result, as the same picture (the browser
+    # stacked them into overlapping lines).
+    page.check("#side")
+    with Image.open(_download(page, "#dl-meme", tmp_path)) as side, Image.open(files["image"]) as image:
+        assert side.size == (1600, 500)
+        right = np.abs(np.asarray(side.convert("RGB"))[:, 800:].astype(int) - np.asarray(image.convert("RGB")))
+    assert np.array_equal(right.max(axis=-1) > 60, drawn)
+    assert page.is_visible("#original") and page.get_attribute("#captions", "src").endswith(
+        "?"
+        + page.evaluate(
+            "() => new URLSearchParams({top: 'how would a dog', bottom: 'wear jeans? Как 狗 🐶'}).toString()"
+        )
+    )

@@ -19,6 +19,7 @@ from importlib import resources
 from pathlib import Path
 
 from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
@@ -300,6 +301,10 @@ class _Api:
             return _error(404, "no such result (it may have expired: render it again)")
         if kind == "preview":
             return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
+        if kind == "captions":  # the meme's captions over the preview (a few tens of ms: not the pool's queue)
+            top, bottom = (request.query_params.get(key, "")[:200] for key in ("top", "bottom"))
+            layer = await run_in_threadpool(engine.caption_layer, result.preview, top, bottom)
+            return Response(layer, media_type="image/png", headers={"Cache-Control": "private, max-age=3600"})
         if kind not in DOWNLOADS:
             return _error(404, "no such download")
         photo = self.state.photos.get(result.photo_id)

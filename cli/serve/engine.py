@@ -367,6 +367,20 @@ def encode_preview(pixels: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
+def caption_layer(preview: bytes, top: str, bottom: str) -> bytes:
+    """The meme's captions alone, as a PNG the size of the preview, transparent elsewhere:
+    drawn by the Meme download's own code (same font, wrapping and fitting), so what
+    the page lays over its picture is what the download holds."""
+    from ..extras import add_captions
+
+    with Image.open(io.BytesIO(preview)) as image:
+        width, height = image.size
+    layer = add_captions(np.zeros((height, width, 4), np.uint8), top, bottom)
+    buffer = io.BytesIO()
+    Image.fromarray(layer, "RGBA").save(buffer, "PNG", compress_level=1)
+    return buffer.getvalue()
+
+
 def output_name(photo: Photo, suffix: str) -> str:
     """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs (the
     meme is ``NAME.meme.EXT``: saved beside the image, neither replaces the other)."""

@@ -70,7 +70,6 @@ function wire() {
   for (const id of ["style", "garment", "posture"]) $(id).addEventListener("change", rerender);
   for (const id of ["top", "bottom", "side"]) $(id).addEventListener("input", updateCaptions);
   $("result").addEventListener("load", updateCaptions);
-  window.addEventListener("resize", updateCaptions);
   $("another").addEventListener("click", () => {
     leavePhoto();
     state.photo = null;
