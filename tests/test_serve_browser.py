@@ -631,3 +631,71 @@ def test_the_caption_preview_is_the_meme_download(server, page, tmp_path):
             "() => new URLSearchParams({top: 'how would a dog', bottom: 'wear jeans? Как 狗 🐶'}).toString()"
         )
     )
+
+
+def _paste_photo(page, image: np.ndarray) -> None:
+    """Paste ``image`` (Ctrl+V of a copied picture: a clipboard with one PNG file)."""
+    data = base64.b64encode(png_bytes(image)).decode()
+    page.evaluate(
+        """async (data) => {
+            const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
+            const transfer = new DataTransfer();
+            transfer.items.add(new File([bytes], "image.png", { type: "image/png" }));
+            document.dispatchEvent(new ClipboardEvent("paste", { clipboardData: transfer, bubbles: true, cancelable: true }));
+        }""",
+        data,
+    )
+
+
+def test_keys_paste_and_the_photo_shown_at_once(server, page):
+    """Issue 32's wishes: a pasted photo opens; it shows at once, veiled, while the server
+    works; every control has a name and the keys (A, R, N, Ctrl+Z, Ctrl+Shift+Z, Delete,
+    O) do what the buttons do; the mask is filled, markers are screen-sized."""
+    page.add_init_script(HOLD_ANSWERS)
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    photo = two_objects()
+    page.evaluate("() => { window.__hold = true; }")
+    _paste_photo(page, photo.image)
+    # Before the server answers: the photo itself, veiled, and no clicks taken.
+    page.wait_for_function("() => document.getElementById('result').src.startsWith('blob:')")
+    page.wait_for_function("() => document.getElementById('result').naturalWidth === 800")
+    assert page.is_visible("#result") and "working" in page.get_attribute("#frame", "class")
+    assert page.locator("#status.busy").count() == 1
+    _let_go(page, "/api/photos")
+    page.evaluate("() => { window.__hold = false; }")
+    _wait_for_result(page, "pasted.png")
+    assert "working" not in page.get_attribute("#frame", "class")
+    assert page.locator("#overlay path.mask").count() >= 1  # the subject filled, not only outlined
+
+    # Every control has a name a screen reader says.
+    unnamed = page.evaluate("""() => [...document.querySelectorAll('button, a, input, select, [tabindex]')]
+        .filter((el) => el.offsetParent !== null)
+        .filter((el) => !((el.getAttribute('aria-label') || '').trim() || (el.labels && el.labels[0]
+            && el.labels[0].textContent.trim()) || el.textContent.trim() || el.closest('label')?.textContent.trim()))
+        .map((el) => el.outerHTML.slice(0, 80))""")
+    assert unnamed == []
+
+    _click_photo(page, *inside_point(photo.masks[0]))
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    radius = page.locator("#overlay circle.click").bounding_box()["width"] / 2
+    assert 5 <= radius <= 8, radius  # 6 screen pixels and its white ring
+    page.keyboard.press("Control+z")
+    assert page.locator("#overlay circle.click").count() == 0
+    page.keyboard.press("Control+Shift+z")
+    assert page.locator("#overlay circle.click.pos").count() == 1
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.keyboard.press("r")
+    assert page.get_attribute("#mode-remove", "aria-pressed") == "true"
+    page.keyboard.press("a")
+    assert page.get_attribute("#mode-add", "aria-pressed") == "true"
+    page.keyboard.press("n")
+    assert page.locator("#objects button").count() == 2
+    page.keyboard.press("Delete")
+    assert page.locator("#overlay circle.click").count() == 0 and page.is_enabled("#undo")
+    page.keyboard.press("o")
+    assert page.locator("#overlay.no-marks").count() == 1 and not page.is_visible("#overlay path.mask")
+    page.keyboard.press("Control+z")  # the Reset undone
+    assert page.locator("#overlay circle.click").count() == 1
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    assert page.problems == []

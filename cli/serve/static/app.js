@@ -2,9 +2,9 @@
 // Coordinates sent to the server are pixels of the photo as displayed (x right, y down).
 // This module loads the options and wires the page; each concern is a module beside it.
 import { updateCaptions } from "./captions.js";
-import { watchFit } from "./drawing.js";
-import { addClick, leavePhoto, newObject, rerender, reset, setMode, undo, upload } from "./editor.js";
-import { loadGallery, saveToFolder } from "./folder.js";
+import { drawOverlay, watchFit } from "./drawing.js";
+import { addClick, leavePhoto, newObject, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -81,13 +81,53 @@ function wire() {
     setStatus("");
     showError("");
   });
-  document.addEventListener("keydown", (e) => {
-    if ((e.ctrlKey || e.metaKey) && e.key === "z" && e.target.tagName !== "INPUT") {
-      e.preventDefault();
-      undo();
-    }
+  $("redo").addEventListener("click", redo);
+  $("marks").addEventListener("change", () => {
+    state.marks = $("marks").checked;
+    drawOverlay();
+  });
+  window.addEventListener("resize", () => drawOverlay());
+  document.addEventListener("keydown", keyPressed);
+  // A photo pasted (Ctrl+V) is opened as a dropped one is.
+  document.addEventListener("paste", (e) => {
+    if (["INPUT", "TEXTAREA"].includes(e.target.tagName) && e.target.type !== "file") return; // a caption
+    const file = [...(e.clipboardData?.files || [])].find((f) => f.type.startsWith("image/"));
+    if (!file) return;
+    e.preventDefault();
+    upload(file.name && file.name !== "image.png" ? file : new File([file], "pasted.png", { type: file.type }));
   });
   loadOptions().catch((error) => showError(error.message));
+}
+
+// The keys (each control's title and the panel's hint say them). Not while typing a
+// caption or choosing from a list: those keys are the control's own.
+function keyPressed(e) {
+  const tag = e.target.tagName;
+  if (tag === "TEXTAREA" || tag === "SELECT" || (tag === "INPUT" && e.target.type !== "checkbox")) return;
+  const key = e.key.length === 1 ? e.key.toLowerCase() : e.key;
+  const command = e.ctrlKey || e.metaKey;
+  let action = null;
+  if (command && !e.altKey) {
+    if (key === "z") action = e.shiftKey ? redo : undo;
+    else if (key === "y") action = redo;
+  } else if (!e.altKey && !$("panel").hidden) {
+    action = {
+      a: () => setMode(false),
+      r: () => setMode(true),
+      n: newObject,
+      Delete: reset,
+      d: () => $("dl-meme").click(),
+      o: () => $("marks").click(),
+      ArrowLeft: () => openNeighbour(-1),
+      ArrowRight: () => openNeighbour(1),
+      "[": () => openNeighbour(-1),
+      "]": () => openNeighbour(1),
+    }[key];
+  }
+  if (action) {
+    e.preventDefault();
+    action();
+  }
 }
 
 wire();

@@ -7,16 +7,19 @@ function drawOverlay(animatedJeans = null) {
   svg.replaceChildren();
   const answer = state.result;
   if (!answer) return;
-  const unit = Math.max(answer.width, answer.height) / 100;
+  svg.classList.toggle("no-marks", !state.marks);
+  // Markers are a constant size on the screen, whatever the photo's size or zoom.
+  const shown = $("result").clientWidth;
+  const photoPixelsPerScreenPixel = shown > 0 ? answer.width / shown : Math.max(answer.width, answer.height) / 800;
   answer.objects.forEach((object, index) => {
-    for (const ring of object.outline) {
-      const d = "M" + ring.map((p) => `${p[0]},${p[1]}`).join("L") + "Z";
-      for (const cls of ["outline-shadow", index === state.current || !answer.clicks ? "outline" : "outline other"]) {
-        const path = document.createElementNS(SVG_NS, "path");
-        path.setAttribute("d", d);
-        path.setAttribute("class", cls);
-        svg.appendChild(path);
-      }
+    const other = answer.clicks && index !== state.current ? " other" : "";
+    // Every ring in one path: the mask's holes stay holes (even-odd fill).
+    const d = object.outline.map((ring) => "M" + ring.map((p) => `${p[0]},${p[1]}`).join("L") + "Z").join("");
+    for (const cls of [`mask${other}`, "outline-shadow", `outline${other}`]) {
+      const path = document.createElementNS(SVG_NS, "path");
+      path.setAttribute("d", d);
+      path.setAttribute("class", cls);
+      svg.appendChild(path);
     }
   });
   if (animatedJeans) {
@@ -33,7 +36,7 @@ function drawOverlay(animatedJeans = null) {
         const dot = document.createElementNS(SVG_NS, "circle");
         dot.setAttribute("cx", x);
         dot.setAttribute("cy", y);
-        dot.setAttribute("r", unit * 0.9);
+        dot.setAttribute("r", 6 * photoPixelsPerScreenPixel);
         dot.setAttribute("class", `click ${sign}${index === state.current ? "" : " faded"}`);
         svg.appendChild(dot);
       }

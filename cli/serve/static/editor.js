@@ -29,6 +29,7 @@ async function upload(file) {
   }
   const generation = leavePhoto();
   setStatus(`Putting jeans on ${file.name}…`, true);
+  showLocal(file, generation);
   const form = new FormData();
   form.append("file", file, file.name);
   try {
@@ -38,10 +39,41 @@ async function upload(file) {
     if (generation !== state.generation) return;
     setStatus("");
     showError(error.message);
+    $("frame").classList.remove("working");
+    $("panel").inert = false;
+    if (!state.result) { // nothing to show: back to the drop zone
+      $("view").hidden = true;
+      $("drop").hidden = false;
+    }
   }
 }
 
+// The dropped photo at once, as the browser decodes it, veiled while the server works;
+// a file the browser cannot show (RAW, TIFF) waits with the drop zone and the status line.
+function showLocal(file, generation) {
+  state.result = null; // no clicks, outline or downloads until this photo's answer
+  drawOverlay();
+  $("captions").hidden = true;
+  const image = $("result");
+  const local = URL.createObjectURL(file);
+  image.addEventListener("error", () => {
+    if (generation === state.generation && !state.result) {
+      $("view").hidden = true;
+      $("drop").hidden = false;
+    }
+  }, { once: true });
+  image.src = local;
+  $("original-figure").hidden = true;
+  $("frame").classList.add("working");
+  $("panel").inert = true;
+  $("drop").hidden = true;
+  $("view").hidden = false;
+  setTimeout(() => URL.revokeObjectURL(local), 60_000);
+}
+
 function start(answer, item) {
+  $("frame").classList.remove("working");
+  $("panel").inert = false;
   state.photo = answer.photo;
   state.item = item;
   state.kind = answer.kind;
@@ -51,6 +83,7 @@ function start(answer, item) {
   state.objects = [];
   state.current = 0;
   state.history = [];
+  state.future = [];
   state.saved = null;
   $("drop").hidden = true;
   $("view").hidden = false;
@@ -167,10 +200,9 @@ function addClick(event) {
   }
   (negative ? object.negative : object.positive).push(photoPoint(event));
   state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
+  state.future = [];
   state.clickPending = true;
-  drawOverlay();
-  updateControls();
-  rerender();
+  changed();
 }
 
 // The clicks to send: the objects that have a positive click.
@@ -182,34 +214,56 @@ function clicksKey() {
   return JSON.stringify(clickedObjects().map((o) => [o.positive, o.negative]));
 }
 
+// Undo and Redo: each step is a click ({object, sign}) or a Reset ({reset: the clicks
+// it cleared, current}); a new click or Reset forgets what could be redone.
 function undo() {
   const last = state.history.pop();
   if (!last) return;
   if (last.reset) { // the clicks a Reset cleared come back
     state.objects = JSON.parse(last.reset);
     state.current = last.current;
-    drawOverlay();
-    updateControls();
-    rerender();
-    return;
+    state.future.push(last);
+  } else {
+    const point = state.objects[last.object][last.sign].pop();
+    state.future.push({ ...last, point });
+    if (state.objects[last.object].positive.length === 0 && state.objects[last.object].negative.length === 0
+        && last.object === state.objects.length - 1 && last.object > 0) {
+      state.objects.pop();
+      state.current = Math.min(state.current, state.objects.length - 1);
+    }
   }
-  state.objects[last.object][last.sign].pop();
-  if (state.objects[last.object].positive.length === 0 && state.objects[last.object].negative.length === 0
-      && last.object === state.objects.length - 1 && last.object > 0) {
-    state.objects.pop();
-    state.current = Math.min(state.current, state.objects.length - 1);
+  changed();
+}
+
+function redo() {
+  const next = state.future.pop();
+  if (!next) return;
+  if (next.reset) {
+    clearClicks();
+  } else {
+    while (state.objects.length <= next.object) state.objects.push({ positive: [], negative: [] });
+    state.objects[next.object][next.sign].push(next.point);
+    state.current = next.object;
+    state.history.push({ object: next.object, sign: next.sign });
   }
-  drawOverlay();
-  updateControls();
-  rerender();
+  changed();
 }
 
 function reset() {
   if (state.objects.length === 0) return;
+  state.future = [];
+  clearClicks();
+  changed(); // the markers go now, not when the automatic result is in
+}
+
+function clearClicks() {
   state.history.push({ reset: JSON.stringify(state.objects), current: state.current }); // Undo brings them back
   state.objects = [];
   state.current = 0;
-  drawOverlay(); // the markers go now, not when the automatic result is in
+}
+
+function changed() {
+  drawOverlay();
   updateControls();
   rerender();
 }
@@ -235,8 +289,9 @@ function setMode(negative) {
 
 function updateControls() {
   const photo = state.kind === "photo";
-  for (const id of ["mode-add", "mode-remove", "new-object", "undo", "reset"]) $(id).disabled = !photo;
+  for (const id of ["mode-add", "mode-remove", "new-object", "undo", "redo", "reset"]) $(id).disabled = !photo;
   $("undo").disabled = !photo || state.history.length === 0;
+  $("redo").disabled = !photo || state.future.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
   $("new-object").disabled = !photo || !state.objects.some((o) => o.positive.length > 0);
   // Save what differs from the folder's: new clicks, or none (back to automatic).
@@ -259,4 +314,4 @@ function updateControls() {
   });
 }
 
-export { addClick, clickedObjects, clicksKey, leavePhoto, newObject, rerender, reset, setMode, start, undo, updateControls, upload };
+export { addClick, clickedObjects, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };

@@ -12,6 +12,7 @@ async function loadGallery() {
   grid.replaceChildren();
   items.clear();
   $("drop-folder-note").hidden = false;
+  document.querySelector(".folder-keys").hidden = false;
   const tiles = answer.items.map((item) => {
     items.set(item.item, item);
     const tile = document.createElement("button");
@@ -104,6 +105,15 @@ async function openItem(item, tile) {
   }
 }
 
+// The folder's previous (-1) or next (+1) photo, from the one open (in the gallery's order).
+function openNeighbour(step) {
+  if (state.item === null) return;
+  const tiles = [...document.querySelectorAll(".tile:not([hidden])")];
+  const at = tiles.findIndex((tile) => Number(tile.dataset.item) === state.item);
+  const tile = tiles[at + step];
+  if (tile) tile.click();
+}
+
 // Save the clicks to the folder; with none left (after Reset or Undo), revert the photo
 // to automatic: its clicks file is removed, after a confirmation.
 async function saveToFolder() {
@@ -138,4 +148,4 @@ async function saveToFolder() {
   }
 }
 
-export { loadGallery, saveToFolder };
+export { loadGallery, openNeighbour, saveToFolder };

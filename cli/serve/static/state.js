@@ -14,6 +14,7 @@ const state = {
   objects: [], // [{positive: [[x, y]], negative: [[x, y]]}]
   current: 0,
   history: [], // [{object, sign}] or [{reset, current}] for undo
+  future: [], // the steps undone, for redo
   saved: null, // the folder's clicks for this photo (clicksKey()), null outside folder mode
   result: null, // last answer of the server
   negative: false, // the touch toggle
@@ -23,6 +24,7 @@ const state = {
   again: false,
   clickPending: false, // the next render was asked for by a click (taken back if it fails)
   animating: false,
+  marks: true, // the outline, mask and clicks drawn over the photo (O hides them)
   animation: 0, // the running animation's number (a newer one, or a stop, ends it)
   generation: 0, // the photo's number: answers for an earlier one are dropped
 };
