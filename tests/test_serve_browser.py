@@ -699,3 +699,47 @@ def test_keys_paste_and_the_photo_shown_at_once(server, page):
     assert page.locator("#overlay circle.click").count() == 1
     page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
     assert page.problems == []
+
+
+def test_a_folder_to_work_through(browser, tmp_path):
+    """Folder mode as a list to work through: "needs a look" puts the photos automatic
+    finding was unsure of first (the listing's ``uncertain``, here added to the server's
+    answer: the page must also work without it), the arrow keys open the previous and
+    next photo in that order, and the counts say how many are fixed and left."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    small = two_objects(width=400, height=250).image
+    Image.fromarray(small).save(photos / "a.png")
+    Image.fromarray(np.ascontiguousarray(small[:, ::-1])).save(photos / "b.png")
+    context = browser.new_context(viewport={"width": 1280, "height": 860})
+    try:
+        with _serving({"folder": photos}) as (server, _):
+            page = context.new_page()
+
+            def unsure_b(route):
+                response = route.fetch()
+                listing = response.json()
+                for item in listing["items"]:
+                    item["uncertain"] = item["name"] == "b.png"
+                route.fulfill(response=response, json=listing)
+
+            page.route("**/api/folder", unsure_b)
+            page.goto(server + "/")
+            page.wait_for_selector(".tile")
+            names = (
+                "() => [...document.querySelectorAll('.tile:not([hidden]) .name')].map((n) => n.firstChild.textContent)"
+            )
+            assert page.evaluate(names) == ["a.png", "b.png"]
+            assert page.inner_text("#folder-counts") == "2 photos: 0 fixed with clicks, 2 left (1 unsure)."
+            page.select_option("#folder-filter", "look")
+            assert page.evaluate(names) == ["b.png", "a.png"]  # the unsure one first
+            page.locator(".tile").first.click()
+            _wait_for_result(page, "b.png")
+            page.keyboard.press("ArrowRight")
+            _wait_for_result(page, "a.png")
+            page.keyboard.press("ArrowLeft")
+            _wait_for_result(page, "b.png")
+            page.select_option("#folder-filter", "fixed")
+            assert page.evaluate(names) == []
+    finally:
+        context.close()

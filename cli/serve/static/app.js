@@ -4,7 +4,7 @@
 import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
 import { addClick, leavePhoto, newObject, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
-import { loadGallery, openNeighbour, saveToFolder } from "./folder.js";
+import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -82,6 +82,7 @@ function wire() {
     showError("");
   });
   $("redo").addEventListener("click", redo);
+  $("folder-filter").addEventListener("change", applyFilter);
   $("marks").addEventListener("change", () => {
     state.marks = $("marks").checked;
     drawOverlay();

@@ -24,11 +24,18 @@ async function loadGallery() {
     name.textContent = item.name;
     tile.append(placeholder(), name);
     setBadge(tile, item.clicks);
+    if (item.uncertain) {
+      const unsure = document.createElement("span");
+      unsure.className = "unsure";
+      unsure.textContent = " ? unsure";
+      name.appendChild(unsure);
+    }
     tile.addEventListener("click", () => openItem(item, tile));
     grid.appendChild(tile);
     return { item, tile };
   });
   updateCounts();
+  applyFilter();
   // One thumbnail at a time: each may be made on demand, and the pool is small.
   for (const { item, tile } of tiles) await loadThumb(item, tile);
 }
@@ -57,7 +64,27 @@ function setBadge(tile, clicks) {
 function updateCounts() {
   const all = [...items.values()];
   const fixed = all.filter((item) => item.clicks).length;
-  $("folder-counts").textContent = `${all.length} photo${all.length === 1 ? "" : "s"}: ${fixed} fixed with clicks, ${all.length - fixed} automatic.`;
+  // "uncertain" (automatic finding was unsure) comes with the listing where the server knows it.
+  const unsure = all.filter((item) => item.uncertain && !item.clicks).length;
+  $("folder-counts").textContent = `${all.length} photo${all.length === 1 ? "" : "s"}: ${fixed} fixed with clicks, `
+    + `${all.length - fixed} left${unsure ? ` (${unsure} unsure)` : ""}.`;
+}
+
+// The gallery as chosen: all photos in the folder's order; those that need a look (not
+// fixed yet, the ones automatic finding was unsure of first); or those fixed. Previous
+// and next (arrow keys) follow this order.
+function applyFilter() {
+  const chosen = $("folder-filter").value;
+  const grid = $("grid");
+  const tiles = [...grid.querySelectorAll(".tile")];
+  const entry = (tile) => items.get(Number(tile.dataset.item));
+  const rank = (tile) => (chosen === "look" && entry(tile).uncertain ? 0 : 1);
+  tiles.sort((a, b) => rank(a) - rank(b) || entry(a).item - entry(b).item);
+  for (const tile of tiles) {
+    const item = entry(tile);
+    tile.hidden = (chosen === "look" && item.clicks) || (chosen === "fixed" && !item.clicks);
+    grid.appendChild(tile);
+  }
 }
 
 async function loadThumb(item, tile) {
@@ -129,6 +156,7 @@ async function saveToFolder() {
     const entry = await post(`/api/folder/${item}/clicks`, revert ? { photo: state.photo, objects: [], revert: true } : { photo: state.photo, objects });
     items.set(item, { ...items.get(item), clicks: entry.clicks });
     updateCounts();
+    applyFilter();
     if (item === state.item) {
       state.saved = key;
       updateControls();
@@ -148,4 +176,4 @@ async function saveToFolder() {
   }
 }
 
-export { loadGallery, openNeighbour, saveToFolder };
+export { applyFilter, loadGallery, openNeighbour, saveToFolder };
