@@ -743,3 +743,43 @@ def test_a_folder_to_work_through(browser, tmp_path):
             assert page.evaluate(names) == []
     finally:
         context.close()
+
+
+def test_a_drag_draws_a_box_and_a_click_stays_a_click(server, page):
+    """Issue 32's wish: boxes from the clicks issue, drawn by dragging on the photo. The
+    box alone moves the jeans onto what it holds; a click after it is still a click."""
+    pending, _, _ = _track_api(page, server)
+    bodies = []
+    answers = []
+    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
+    page.on("response", lambda r: r.url.endswith("/render") and r.ok and answers.append(r.json()))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    photo = two_objects()
+    _drop_photo(page, photo.image)
+    rows, cols = np.nonzero(photo.masks[1])  # the dog
+    x0, y0, x1, y1 = cols.min() - 8, rows.min() - 8, cols.max() + 8, rows.max() + 8
+    box = page.locator("#result").bounding_box()
+    scale = box["width"] / 800
+    page.mouse.move(box["x"] + x0 * scale, box["y"] + y0 * scale)
+    page.mouse.down()
+    for step in range(1, 6):
+        page.mouse.move(box["x"] + (x0 + (x1 - x0) * step / 5) * scale, box["y"] + (y0 + (y1 - y0) * step / 5) * scale)
+    assert page.locator("#overlay rect.box.draft").count() == 1  # drawn as it is dragged
+    page.mouse.up()
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    assert page.locator("#overlay rect.box").count() == 1 and page.locator("#overlay circle.click").count() == 0
+    sent = bodies[-1]["objects"]
+    assert len(sent) == 1 and sent[0]["positive"] == []
+    assert np.allclose(sent[0]["box"], [x0, y0, x1, y1], atol=1.5), sent
+    _settle(page, pending, quiet_ms=300)
+    jeans = answers[-1]["objects"][0]["jeans"]
+    assert share_on(jeans, photo.masks[1]) > 0.7 and share_on(jeans, photo.masks[0]) < 0.02  # on the dog
+    _click_photo(page, *inside_point(photo.masks[1]))
+    page.wait_for_function("() => document.querySelectorAll('#overlay circle.click.pos').length === 1")
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    assert bodies[-1]["objects"][0]["positive"] and bodies[-1]["objects"][0]["box"]
+    page.keyboard.press("Control+z")
+    page.keyboard.press("Control+z")
+    assert page.locator("#overlay rect.box").count() == 0
+    assert page.problems == []

@@ -3,7 +3,7 @@
 // This module loads the options and wires the page; each concern is a module beside it.
 import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
-import { addClick, leavePhoto, newObject, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { addClick, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
 import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -58,6 +58,11 @@ function wire() {
     if (e.dataTransfer && e.dataTransfer.files.length) upload(e.dataTransfer.files[0]);
   });
   const frame = $("frame");
+  frame.addEventListener("pointerdown", pointerDown);
+  frame.addEventListener("pointermove", pointerMove);
+  frame.addEventListener("pointerup", pointerUp);
+  frame.addEventListener("pointercancel", pointerUp);
+  frame.addEventListener("dragstart", (e) => e.preventDefault()); // a drag draws a box, it does not carry the picture off
   frame.addEventListener("click", addClick);
   frame.addEventListener("contextmenu", addClick);
   $("mode-add").addEventListener("click", () => setMode(false));

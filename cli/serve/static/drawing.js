@@ -2,7 +2,18 @@
 // and the fit played back.
 import { $, SVG_NS, state } from "./state.js";
 
-function drawOverlay(animatedJeans = null) {
+function rectangle(box, cls) {
+  const rect = document.createElementNS(SVG_NS, "rect");
+  rect.setAttribute("x", box[0]);
+  rect.setAttribute("y", box[1]);
+  rect.setAttribute("width", box[2] - box[0]);
+  rect.setAttribute("height", box[3] - box[1]);
+  rect.setAttribute("class", cls);
+  return rect;
+}
+
+// draftBox: the box being dragged, drawn as it goes.
+function drawOverlay(animatedJeans = null, draftBox = null) {
   const svg = $("overlay");
   svg.replaceChildren();
   const answer = state.result;
@@ -30,6 +41,10 @@ function drawOverlay(animatedJeans = null) {
       svg.appendChild(shape);
     }
   }
+  state.objects.forEach((object, index) => {
+    if (object.box) svg.appendChild(rectangle(object.box, `box${index === state.current ? "" : " faded"}`));
+  });
+  if (draftBox) svg.appendChild(rectangle(draftBox, "box draft"));
   state.objects.forEach((object, index) => {
     for (const [sign, points] of [["pos", object.positive], ["neg", object.negative]]) {
       for (const [x, y] of points) {

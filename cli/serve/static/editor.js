@@ -91,10 +91,12 @@ function start(answer, item) {
   $("save").hidden = item === null;
   $("original").src = `/api/photos/${answer.photo}/original`;
   if (answer.clicks && answer.saved_clicks) {
-    state.objects = answer.saved_clicks.map((o) => ({ positive: o.positive, negative: o.negative }));
-    // Each saved click is one step to undo, as if it had just been made.
-    state.history = state.objects.flatMap((o, object) => ["positive", "negative"].flatMap(
-      (sign) => o[sign].map(() => ({ object, sign }))));
+    state.objects = answer.saved_clicks.map((o) => ({ positive: o.positive, negative: o.negative, box: o.box || null }));
+    // Each saved box and click is one step to undo, as if it had just been made.
+    state.history = state.objects.flatMap((o, object) => [
+      ...(o.box ? [{ object, box: o.box, before: null }] : []),
+      ...["positive", "negative"].flatMap((sign) => o[sign].map(() => ({ object, sign }))),
+    ]);
   }
   if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
@@ -173,7 +175,7 @@ async function rerender() {
 function takeBack() {
   const last = state.history.pop();
   if (!last) return;
-  state.objects[last.object][last.sign].pop();
+  stepBack(last);
   drawOverlay();
   updateControls();
   describe(state.result);
@@ -188,13 +190,63 @@ function photoPoint(event) {
   return [Math.round(clamp(x, state.width) * 10) / 10, Math.round(clamp(y, state.height) * 10) / 10];
 }
 
+// ------------------------------------------------------------------ boxes
+// A drag on the photo (mouse or pen) draws a box around the object; a click stays a click.
+let drag = null;
+
+function boxOf(a, b) {
+  return [Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.max(a[0], b[0]), Math.max(a[1], b[1])];
+}
+
+function pointerDown(event) {
+  state.dragged = false;
+  if (state.kind !== "photo" || !state.result || event.button !== 0 || event.pointerType === "touch") return;
+  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false };
+}
+
+function pointerMove(event) {
+  if (!drag) return;
+  if (!drag.moved && Math.hypot(event.clientX - drag.x, event.clientY - drag.y) < 6) return;
+  if (!drag.moved) $("frame").setPointerCapture(event.pointerId);
+  drag.moved = true;
+  drawOverlay(null, boxOf(drag.start, photoPoint(event)));
+}
+
+function pointerUp(event) {
+  if (!drag) return;
+  const done = drag;
+  drag = null;
+  if (!done.moved) return; // a click: the click event adds it
+  if (event.type === "pointercancel") {
+    drawOverlay();
+    return;
+  }
+  state.dragged = true;
+  const box = boxOf(done.start, photoPoint(event));
+  if (box[2] - box[0] < 2 || box[3] - box[1] < 2) {
+    drawOverlay();
+    return;
+  }
+  if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
+  const object = state.objects[state.current];
+  state.history.push({ object: state.current, box, before: object.box || null });
+  object.box = box;
+  state.future = [];
+  state.clickPending = true; // taken back if nothing is found in it
+  changed();
+}
+
 function addClick(event) {
   if (state.kind !== "photo" || !state.result) return;
   event.preventDefault();
   const negative = state.negative || event.shiftKey || event.altKey || event.ctrlKey || event.metaKey || event.button === 2;
-  if (!state.objects[state.current]) state.objects[state.current] = { positive: [], negative: [] };
+  if (state.dragged) { // the end of a drag: its box is made
+    state.dragged = false;
+    return;
+  }
+  if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
   const object = state.objects[state.current];
-  if (negative && object.positive.length === 0) {
+  if (negative && object.positive.length === 0 && !object.box) {
     showError("Add a positive click on the object first, then remove what is not part of it.");
     return;
   }
@@ -205,34 +257,46 @@ function addClick(event) {
   changed();
 }
 
-// The clicks to send: the objects that have a positive click.
+function emptyObject() {
+  return { positive: [], negative: [], box: null };
+}
+
+// The clicks to send: the objects that have a positive click or a box.
 function clickedObjects() {
-  return state.objects.filter((o) => o.positive.length > 0);
+  return state.objects.filter((o) => o.positive.length > 0 || o.box)
+    .map((o) => (o.box ? { positive: o.positive, negative: o.negative, box: o.box } : { positive: o.positive, negative: o.negative }));
 }
 
 function clicksKey() {
-  return JSON.stringify(clickedObjects().map((o) => [o.positive, o.negative]));
+  return JSON.stringify(clickedObjects());
 }
 
-// Undo and Redo: each step is a click ({object, sign}) or a Reset ({reset: the clicks
-// it cleared, current}); a new click or Reset forgets what could be redone.
+// Undo and Redo: each step is a click ({object, sign}), a box ({object, box, before})
+// or a Reset ({reset: the clicks it cleared, current}); a new step forgets what could be redone.
 function undo() {
   const last = state.history.pop();
   if (!last) return;
+  state.future.push(stepBack(last));
+  changed();
+}
+
+// Undo one step; what Redo needs to make it again.
+function stepBack(last) {
   if (last.reset) { // the clicks a Reset cleared come back
     state.objects = JSON.parse(last.reset);
     state.current = last.current;
-    state.future.push(last);
-  } else {
-    const point = state.objects[last.object][last.sign].pop();
-    state.future.push({ ...last, point });
-    if (state.objects[last.object].positive.length === 0 && state.objects[last.object].negative.length === 0
-        && last.object === state.objects.length - 1 && last.object > 0) {
-      state.objects.pop();
-      state.current = Math.min(state.current, state.objects.length - 1);
-    }
+    return last;
   }
-  changed();
+  const object = state.objects[last.object];
+  let step = last;
+  if ("box" in last) object.box = last.before;
+  else step = { ...last, point: object[last.sign].pop() };
+  if (object.positive.length === 0 && object.negative.length === 0 && !object.box
+      && last.object === state.objects.length - 1 && last.object > 0) {
+    state.objects.pop();
+    state.current = Math.min(state.current, state.objects.length - 1);
+  }
+  return step;
 }
 
 function redo() {
@@ -241,10 +305,16 @@ function redo() {
   if (next.reset) {
     clearClicks();
   } else {
-    while (state.objects.length <= next.object) state.objects.push({ positive: [], negative: [] });
-    state.objects[next.object][next.sign].push(next.point);
+    while (state.objects.length <= next.object) state.objects.push(emptyObject());
+    const object = state.objects[next.object];
+    if ("box" in next) {
+      object.box = next.box;
+      state.history.push(next);
+    } else {
+      object[next.sign].push(next.point);
+      state.history.push({ object: next.object, sign: next.sign });
+    }
     state.current = next.object;
-    state.history.push({ object: next.object, sign: next.sign });
   }
   changed();
 }
@@ -270,10 +340,10 @@ function changed() {
 
 function newObject() {
   const last = state.objects[state.objects.length - 1];
-  if (last && last.positive.length === 0) {
+  if (last && last.positive.length === 0 && !last.box) {
     state.current = state.objects.length - 1;
   } else {
-    state.objects.push({ positive: [], negative: [] });
+    state.objects.push(emptyObject());
     state.current = state.objects.length - 1;
   }
   drawOverlay();
@@ -293,7 +363,7 @@ function updateControls() {
   $("undo").disabled = !photo || state.history.length === 0;
   $("redo").disabled = !photo || state.future.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
-  $("new-object").disabled = !photo || !state.objects.some((o) => o.positive.length > 0);
+  $("new-object").disabled = !photo || clickedObjects().length === 0;
   // Save what differs from the folder's: new clicks, or none (back to automatic).
   const clicked = clickedObjects().length > 0;
   $("save").disabled = state.saved === null || clicksKey() === state.saved;
@@ -303,7 +373,7 @@ function updateControls() {
   state.objects.forEach((object, index) => {
     const button = document.createElement("button");
     button.type = "button";
-    button.textContent = `Object ${index + 1} (${object.positive.length}+ ${object.negative.length}\u2212)`;
+    button.textContent = `Object ${index + 1} (${object.positive.length}+ ${object.negative.length}\u2212${object.box ? ", box" : ""})`;
     button.setAttribute("aria-pressed", String(index === state.current));
     button.addEventListener("click", () => {
       state.current = index;
@@ -314,4 +384,4 @@ function updateControls() {
   });
 }
 
-export { addClick, clickedObjects, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };
+export { addClick, clickedObjects, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };
