@@ -129,6 +129,10 @@ def optimisation_gif(result, max_frames: int = 50, max_side: int = GIF_MAX_SIDE)
         frame[height - bar :, :done] = JEANS_BLUE
         frames.append(Image.fromarray(frame))
     durations = [_FRAME_MS] * (len(frames) - 1) + [_LAST_FRAME_MS]
+    # One palette for every frame, from the last (the photo and the jeans in place):
+    # mapping onto it is ~50x quicker than Pillow's own palette per frame, and smaller.
+    palette = frames[-1].quantize(255, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    frames = [frame.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG) for frame in frames]
     buffer = io.BytesIO()
     frames[0].save(buffer, "GIF", save_all=True, append_images=frames[1:], duration=durations, loop=0, disposal=1)
     return buffer.getvalue()

@@ -67,6 +67,8 @@ def test_page_and_static_files(client):
     for path in ("/", *scripts, "/static/style.css"):
         text = client.get(path).text
         assert "http://" not in text.replace("http://www.w3.org/2000/svg", "") and "https://" not in text
+    # The whole page, as sent, stays light (no build step, nothing minified).
+    assert sum(len(client.get(path).content) for path in ("/", *scripts, "/static/style.css")) < 300_000
     csp = page.headers["content-security-policy"]
     assert "default-src 'none'" in csp and "connect-src 'self'" in csp
     assert page.headers["x-content-type-options"] == "nosniff"
@@ -139,6 +141,8 @@ def test_good_photo_then_clicks_then_downloads(client):
     assert client.get(downloads["svg"]).content.startswith(b"<?xml")
     gif = client.get(downloads["gif"])
     assert gif.headers["content-type"] == "image/gif" and gif.content[:6] == b"GIF89a"
+    with Image.open(io.BytesIO(gif.content)) as animation:  # the preview's size (this photo's own), every step
+        assert animation.size == (800, 500) and animation.n_frames > 10
     clicks = client.get(downloads["clicks"])
     assert clicks.headers["content-disposition"] == 'attachment; filename="two.clicks.json"'
     replay = Clicks.single([point], image_size=(800, 500))

@@ -552,6 +552,11 @@ def test_reset_undo_downloads_and_the_empty_page(server, page, browser, tmp_path
 
     names = {_download(page, button, tmp_path).name for button in ("#dl-meme", "#dl-image")}
     assert names == {"pets.meme.png", "pets.jeans.png"}
+    with page.expect_download(timeout=90_000) as gif:
+        page.click("#dl-gif")
+        assert "Making the GIF" in page.inner_text("#status.busy")  # it takes seconds: the page says so
+    assert gif.value.suggested_filename == "pets.jeans.gif"
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
 
     phone = browser.new_context(viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True)
     try:

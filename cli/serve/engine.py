@@ -414,7 +414,7 @@ def download(
         text = svg_document(polygons, contours, tuple(int(v) for v in photo.size), f"jeanscv: {photo.name}")
         return text.encode("utf-8"), output_name(photo, ".svg")
     if kind == "gif":
-        return optimisation_gif(result, 50), output_name(photo, ".gif")
+        return optimisation_gif(result, 50, max_side=PREVIEW_SIDE), output_name(photo, ".gif")  # the preview's size
     raise JeansError(f"unknown download {kind!r}")
 
 

@@ -3,7 +3,7 @@
 // This module loads the options and wires the page; each concern is a module beside it.
 import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
-import { addClick, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
 import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -87,6 +87,7 @@ function wire() {
     showError("");
   });
   $("redo").addEventListener("click", redo);
+  $("dl-gif").addEventListener("click", downloadWithProgress);
   $("folder-filter").addEventListener("change", applyFilter);
   $("marks").addEventListener("change", () => {
     state.marks = $("marks").checked;
@@ -103,6 +104,35 @@ function wire() {
     upload(file.name && file.name !== "image.png" ? file : new File([file], "pasted.png", { type: file.type }));
   });
   loadOptions().catch((error) => showError(error.message));
+}
+
+// The GIF takes seconds to make: fetched here, with a busy status, then saved.
+async function downloadWithProgress(event) {
+  event.preventDefault();
+  const link = event.currentTarget;
+  if (link.classList.contains("disabled") || link.getAttribute("aria-busy") === "true") return;
+  const generation = state.generation;
+  link.setAttribute("aria-busy", "true");
+  setStatus(`Making the GIF of the fit (a few seconds)…`, true);
+  try {
+    const response = await fetch(link.href);
+    if (!response.ok) {
+      const data = await response.json().catch(() => ({}));
+      throw new Error(data.error || `the server answered ${response.status}`);
+    }
+    const name = /filename="([^"]+)"/.exec(response.headers.get("Content-Disposition") || "")?.[1] || "jeans.gif";
+    const url = URL.createObjectURL(await response.blob());
+    const save = document.createElement("a");
+    save.href = url;
+    save.download = name;
+    save.click();
+    setTimeout(() => URL.revokeObjectURL(url), 60_000);
+  } catch (error) {
+    showError(error.message);
+  } finally {
+    link.removeAttribute("aria-busy");
+    if (generation === state.generation) describe(state.result);
+  }
 }
 
 // The keys (each control's title and the panel's hint say them). Not while typing a

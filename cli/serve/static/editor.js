@@ -384,4 +384,4 @@ function updateControls() {
   });
 }
 
-export { addClick, clickedObjects, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };
+export { addClick, clickedObjects, describe, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };
