@@ -2,8 +2,9 @@
 Playwright (never ``playwright install``: no browser is downloaded).
 
 Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
-With ``JEANSCV_SCREENSHOT=PATH`` the test also saves the page in use there
-(``docs/serve.jpg`` is made so: see ``bench/serve_screenshot.py``).
+With ``JEANSCV_SCREENSHOT=PATH`` the main test also saves the page in use there, and with
+``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save
+(``docs/serve.jpg`` and ``docs/serve-folder.jpg`` are made so: see ``bench/serve_screenshot.py``).
 """
 
 from __future__ import annotations
@@ -503,6 +504,10 @@ def test_folder_mode_saves_reverts_and_shows_it_at_once(browser, tmp_path):
             assert page.locator(".tile .badge").count() == 1  # at once, no reload
             assert "1 fixed" in page.inner_text("#folder-counts")
             assert page.is_disabled("#save")  # nothing new to save
+            if os.environ.get("JEANSCV_FOLDER_SCREENSHOT"):  # docs/serve-folder.jpg (bench/serve_screenshot.py)
+                page.wait_for_function("() => document.querySelector('.tile img.thumb')?.naturalWidth > 0")
+                page.evaluate("() => window.scrollTo(0, 0)")
+                page.screenshot(path=os.environ["JEANSCV_FOLDER_SCREENSHOT"], type="jpeg", quality=88, full_page=True)
 
             page.click(".tile")  # opened again: the saved click is back, and can be undone
             page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
