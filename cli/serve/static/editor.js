@@ -17,6 +17,9 @@ function leavePhoto() {
   state.again = false;
   state.clickPending = false;
   stopAnimation();
+  state.photo = null; // no click, render or download for the photo left
+  state.result = null;
+  drawOverlay();
   return state.generation;
 }
 
@@ -51,8 +54,6 @@ async function upload(file) {
 // The dropped photo at once, as the browser decodes it, veiled while the server works;
 // a file the browser cannot show (RAW, TIFF) waits with the drop zone and the status line.
 function showLocal(file, generation) {
-  state.result = null; // no clicks, outline or downloads until this photo's answer
-  drawOverlay();
   $("captions").hidden = true;
   const image = $("result");
   const local = URL.createObjectURL(file);

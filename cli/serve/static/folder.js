@@ -120,6 +120,8 @@ async function openItem(item, tile) {
   setStatus(`Opening ${item.name}…`, true);
   for (const other of document.querySelectorAll(".tile")) other.classList.toggle("open", other === tile);
   const generation = leavePhoto();
+  $("frame").classList.add("working"); // the photo before stays in sight, veiled, until this one is in
+  $("panel").inert = true;
   try {
     const answer = await post(`/api/folder/${item.item}/open`, {});
     if (generation !== state.generation) return; // another photo was opened since
@@ -127,6 +129,8 @@ async function openItem(item, tile) {
     window.scrollTo({ top: $("editor").offsetTop, behavior: "smooth" });
   } catch (error) {
     if (generation !== state.generation) return;
+    $("frame").classList.remove("working");
+    $("panel").inert = false;
     setStatus("");
     showError(error.message);
   }
