@@ -165,8 +165,12 @@ def _shown_pixels(page, height: int, width: int) -> np.ndarray:
 
 
 def _click_photo(page, x: float, y: float, **options) -> None:
-    """Click the photo at its pixel ``(x, y)`` (the result is shown at any scale)."""
-    box = page.locator("#result").bounding_box()
+    """Click the photo at its pixel ``(x, y)`` (the result is shown at any scale), once it
+    stands still (opening a folder photo scrolls the page smoothly to it)."""
+    box, before = page.locator("#result").bounding_box(), None
+    while box != before:
+        page.wait_for_timeout(60)
+        before, box = box, page.locator("#result").bounding_box()
     size = page.evaluate(
         "() => { const s = document.getElementById('overlay').viewBox.baseVal; return [s.width, s.height]; }"
     )
