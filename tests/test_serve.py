@@ -67,6 +67,8 @@ def test_page_and_static_files(client):
     for path in ("/", *scripts, "/static/style.css"):
         text = client.get(path).text
         assert "http://" not in text.replace("http://www.w3.org/2000/svg", "") and "https://" not in text
+    # The whole page, as sent, stays light (no build step, nothing minified).
+    assert sum(len(client.get(path).content) for path in ("/", *scripts, "/static/style.css")) < 300_000
     csp = page.headers["content-security-policy"]
     assert "default-src 'none'" in csp and "connect-src 'self'" in csp
     assert page.headers["x-content-type-options"] == "nosniff"
@@ -139,6 +141,8 @@ def test_good_photo_then_clicks_then_downloads(client):
     assert client.get(downloads["svg"]).content.startswith(b"<?xml")
     gif = client.get(downloads["gif"])
     assert gif.headers["content-type"] == "image/gif" and gif.content[:6] == b"GIF89a"
+    with Image.open(io.BytesIO(gif.content)) as animation:  # the preview's size (this photo's own), every step
+        assert animation.size == (800, 500) and animation.n_frames > 10
     clicks = client.get(downloads["clicks"])
     assert clicks.headers["content-disposition"] == 'attachment; filename="two.clicks.json"'
     replay = Clicks.single([point], image_size=(800, 500))
@@ -372,6 +376,14 @@ def test_folder_fix_with_clicks(make_client, folder):
     # Another folder item's name cannot take these clicks.
     other = client.post("/api/folder/0/clicks", json={"photo": photo, "objects": [{"positive": [point]}]})
     assert other.status_code == 422
+    # Back to automatic: only when said outright; the clicks file goes, the output is made again.
+    clicked_output = (folder / "pets.jeans.png").read_bytes()
+    assert client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": []}).status_code == 422
+    reverted = client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": [], "revert": True})
+    assert reverted.status_code == 200, reverted.text
+    assert reverted.json()["clicks"] is False and not sidecar_path(folder / "pets.png").exists()
+    assert (folder / "pets.jeans.png").read_bytes() != clicked_output
+    assert client.post(f"/api/folder/{index}/open").json()["clicks"] is False
 
 
 def test_folder_clicks_replay_through_the_command_line(make_client, folder, run_cli):

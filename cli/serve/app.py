@@ -19,6 +19,7 @@ from importlib import resources
 from pathlib import Path
 
 from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
@@ -307,6 +308,10 @@ class _Api:
             return _error(404, "no such result (it may have expired: render it again)")
         if kind == "preview":
             return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
+        if kind == "captions":  # the meme's captions over the preview (a few tens of ms: not the pool's queue)
+            top, bottom = (request.query_params.get(key, "")[:200] for key in ("top", "bottom"))
+            layer = await run_in_threadpool(engine.caption_layer, result.preview, top, bottom)
+            return Response(layer, media_type="image/png", headers={"Cache-Control": "private, max-age=3600"})
         if kind not in DOWNLOADS:
             return _error(404, "no such download")
         photo = self.state.photos.get(result.photo_id)
@@ -445,7 +450,7 @@ class _Api:
             return _error(422, "this photo is not that folder item")
         try:
             clicks = engine.clicks_from_json(data.get("objects"), photo.size)
-            if clicks is None:
+            if clicks is None and data.get("revert") is not True:  # reverting to automatic is said outright
                 raise JeansError("no clicks to save: click the subject first")
         except JeansError as exc:
             return _error(422, f"{photo.name}: {exc}")
@@ -453,8 +458,8 @@ class _Api:
         def save() -> None:
             with self.state.folder_lock:
                 _refuse_links(job, self.state.folder)
-                engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels)
-                self._remember(job, False)  # the clicks say what the subject is
+                # Clicks say what the subject is; reverted, automatic finding's doubt is back.
+                self._remember(job, engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels))
 
         await self.job(photo.name, save)
         return JSONResponse(self.item_entry(request.path_params["item"], job))

@@ -368,8 +368,23 @@ def encode_preview(pixels: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
+def caption_layer(preview: bytes, top: str, bottom: str) -> bytes:
+    """The meme's captions alone, as a PNG the size of the preview, transparent elsewhere:
+    drawn by the Meme download's own code (same font, wrapping and fitting), so what
+    the page lays over its picture is what the download holds."""
+    from ..extras import add_captions
+
+    with Image.open(io.BytesIO(preview)) as image:
+        width, height = image.size
+    layer = add_captions(np.zeros((height, width, 4), np.uint8), top, bottom)
+    buffer = io.BytesIO()
+    Image.fromarray(layer, "RGBA").save(buffer, "PNG", compress_level=1)
+    return buffer.getvalue()
+
+
 def output_name(photo: Photo, suffix: str) -> str:
-    """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs."""
+    """A download's file name: ``NAME.jeans.EXT`` like the command line's outputs (the
+    meme is ``NAME.meme.EXT``: saved beside the image, neither replaces the other)."""
     return Path(photo.name).stem + ".jeans" + suffix
 
 
@@ -390,7 +405,8 @@ def download(
         wanted = options if kind == "meme" else replace(options, top="", bottom="", side_by_side=False)
         pixels = worker.picture(result, wanted.jeans_options(None))
         target = Path(output_name(photo, picture_suffix))
-        return encode_picture(target, pixels, result), target.name
+        name = Path(photo.name).stem + ".meme" + picture_suffix if kind == "meme" else target.name
+        return encode_picture(target, pixels, result), name
     if kind == "json":
         return report_text(result, job.display, str(job.outputs["image"])).encode("utf-8"), output_name(photo, ".json")
     if kind == "svg":
@@ -399,7 +415,7 @@ def download(
         text = svg_document(polygons, contours, tuple(int(v) for v in photo.size), f"jeanscv: {photo.name}")
         return text.encode("utf-8"), output_name(photo, ".svg")
     if kind == "gif":
-        return optimisation_gif(result, 50), output_name(photo, ".gif")
+        return optimisation_gif(result, 50, max_side=PREVIEW_SIDE), output_name(photo, ".gif")  # the preview's size
     raise JeansError(f"unknown download {kind!r}")
 
 
@@ -462,11 +478,21 @@ def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> bool
     return outcome.info.get("uncertain")
 
 
-def save_clicks(job: Job, clicks: Clicks, backend: str | None, max_pixels: int) -> None:
+def save_clicks(job: Job, clicks: Clicks | None, backend: str | None, max_pixels: int) -> bool:
     """Save the folder photo's clicks beside it, then make its output from them as the
-    command line does; JeansError with the reason when that fails."""
-    write_clicks(sidecar_path(job.path), clicks)
-    write_folder_outputs(job, backend, max_pixels)  # clicked: the subject is the user's
+    command line does; JeansError with the reason when that fails. ``clicks`` None
+    reverts the photo to automatic: its clicks file is removed and the output made again.
+    Returns whether the photo may have the wrong subject (never, with clicks)."""
+    sidecar = sidecar_path(job.path)
+    if clicks is not None:
+        write_clicks(sidecar, clicks)
+    else:
+        try:
+            sidecar.unlink()
+        except FileNotFoundError:
+            pass
+    uncertain = write_folder_outputs(job, backend, max_pixels)
+    return clicks is None and bool(uncertain)
 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:

@@ -2,9 +2,9 @@
 // Coordinates sent to the server are pixels of the photo as displayed (x right, y down).
 // This module loads the options and wires the page; each concern is a module beside it.
 import { updateCaptions } from "./captions.js";
-import { watchFit } from "./drawing.js";
-import { addClick, newObject, rerender, reset, setMode, undo, upload } from "./editor.js";
-import { loadGallery, saveToFolder } from "./folder.js";
+import { drawOverlay, watchFit } from "./drawing.js";
+import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -42,6 +42,10 @@ function wire() {
       $("file").click();
     }
   });
+  // A click or tap anywhere on the zone chooses a file too (its button's own click opens it once).
+  drop.addEventListener("click", (e) => {
+    if (!e.target.closest("label")) $("file").click();
+  });
   // Drops anywhere on the page (the drop zone's bubble up here): one upload per drop.
   document.addEventListener("dragover", (e) => {
     e.preventDefault();
@@ -54,6 +58,11 @@ function wire() {
     if (e.dataTransfer && e.dataTransfer.files.length) upload(e.dataTransfer.files[0]);
   });
   const frame = $("frame");
+  frame.addEventListener("pointerdown", pointerDown);
+  frame.addEventListener("pointermove", pointerMove);
+  frame.addEventListener("pointerup", pointerUp);
+  frame.addEventListener("pointercancel", pointerUp);
+  frame.addEventListener("dragstart", (e) => e.preventDefault()); // a drag draws a box, it does not carry the picture off
   frame.addEventListener("click", addClick);
   frame.addEventListener("contextmenu", addClick);
   $("mode-add").addEventListener("click", () => setMode(false));
@@ -66,8 +75,8 @@ function wire() {
   for (const id of ["style", "garment", "posture"]) $(id).addEventListener("change", rerender);
   for (const id of ["top", "bottom", "side"]) $(id).addEventListener("input", updateCaptions);
   $("result").addEventListener("load", updateCaptions);
-  window.addEventListener("resize", updateCaptions);
   $("another").addEventListener("click", () => {
+    leavePhoto();
     state.photo = null;
     state.result = null;
     $("view").hidden = true;
@@ -77,13 +86,84 @@ function wire() {
     setStatus("");
     showError("");
   });
-  document.addEventListener("keydown", (e) => {
-    if ((e.ctrlKey || e.metaKey) && e.key === "z" && e.target.tagName !== "INPUT") {
-      e.preventDefault();
-      undo();
-    }
+  $("redo").addEventListener("click", redo);
+  $("dl-gif").addEventListener("click", downloadWithProgress);
+  $("folder-filter").addEventListener("change", applyFilter);
+  $("marks").addEventListener("change", () => {
+    state.marks = $("marks").checked;
+    drawOverlay();
+  });
+  window.addEventListener("resize", () => drawOverlay());
+  document.addEventListener("keydown", keyPressed);
+  // A photo pasted (Ctrl+V) is opened as a dropped one is.
+  document.addEventListener("paste", (e) => {
+    if (["INPUT", "TEXTAREA"].includes(e.target.tagName) && e.target.type !== "file") return; // a caption
+    const file = [...(e.clipboardData?.files || [])].find((f) => f.type.startsWith("image/"));
+    if (!file) return;
+    e.preventDefault();
+    upload(file.name && file.name !== "image.png" ? file : new File([file], "pasted.png", { type: file.type }));
   });
   loadOptions().catch((error) => showError(error.message));
+}
+
+// The GIF takes seconds to make: fetched here, with a busy status, then saved.
+async function downloadWithProgress(event) {
+  event.preventDefault();
+  const link = event.currentTarget;
+  if (link.classList.contains("disabled") || link.getAttribute("aria-busy") === "true") return;
+  const generation = state.generation;
+  link.setAttribute("aria-busy", "true");
+  setStatus(`Making the GIF of the fit (a few seconds)…`, true);
+  try {
+    const response = await fetch(link.href);
+    if (!response.ok) {
+      const data = await response.json().catch(() => ({}));
+      throw new Error(data.error || `the server answered ${response.status}`);
+    }
+    const name = /filename="([^"]+)"/.exec(response.headers.get("Content-Disposition") || "")?.[1] || "jeans.gif";
+    const url = URL.createObjectURL(await response.blob());
+    const save = document.createElement("a");
+    save.href = url;
+    save.download = name;
+    save.click();
+    setTimeout(() => URL.revokeObjectURL(url), 60_000);
+  } catch (error) {
+    showError(error.message);
+  } finally {
+    link.removeAttribute("aria-busy");
+    if (generation === state.generation) describe(state.result);
+  }
+}
+
+// The keys (each control's title and the panel's hint say them). Not while typing a
+// caption or choosing from a list: those keys are the control's own.
+function keyPressed(e) {
+  const tag = e.target.tagName;
+  if (tag === "TEXTAREA" || tag === "SELECT" || (tag === "INPUT" && e.target.type !== "checkbox")) return;
+  const key = e.key.length === 1 ? e.key.toLowerCase() : e.key;
+  const command = e.ctrlKey || e.metaKey;
+  let action = null;
+  if (command && !e.altKey) {
+    if (key === "z") action = e.shiftKey ? redo : undo;
+    else if (key === "y") action = redo;
+  } else if (!e.altKey && !$("panel").hidden) {
+    action = {
+      a: () => setMode(false),
+      r: () => setMode(true),
+      n: newObject,
+      Delete: reset,
+      d: () => $("dl-meme").click(),
+      o: () => $("marks").click(),
+      ArrowLeft: () => openNeighbour(-1),
+      ArrowRight: () => openNeighbour(1),
+      "[": () => openNeighbour(-1),
+      "]": () => openNeighbour(1),
+    }[key];
+  }
+  if (action) {
+    e.preventDefault();
+    action();
+  }
 }
 
 wire();

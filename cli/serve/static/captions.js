@@ -1,16 +1,28 @@
-// Captions, the side-by-side layout and the meme download's link.
+// Captions, the side-by-side layout and the meme download's link. The captions shown
+// are a picture the server draws with the Meme download's own code (font, wrapping,
+// fitting), laid over the result: the preview is what the download holds.
 import { $, state } from "./state.js";
 
+let pending = 0;
+
 function updateCaptions() {
-  const frame = $("frame");
-  const size = Math.max(12, Math.round(frame.clientHeight / 9));
-  for (const [id, input] of [["cap-top", "top"], ["cap-bottom", "bottom"]]) {
-    const caption = $(id);
-    caption.textContent = $(input).value;
-    caption.style.fontSize = `${size}px`;
-  }
   $("original-figure").hidden = !$("side").checked;
   updateMemeLink();
+  clearTimeout(pending);
+  pending = setTimeout(showCaptions, 120); // one request per pause in typing
+}
+
+function showCaptions() {
+  const layer = $("captions");
+  const top = $("top").value;
+  const bottom = $("bottom").value;
+  if (!state.result || !(top.trim() || bottom.trim())) {
+    layer.hidden = true;
+    layer.removeAttribute("src");
+    return;
+  }
+  layer.src = `/api/results/${state.result.result}/captions?${new URLSearchParams({ top, bottom })}`;
+  layer.hidden = false;
 }
 
 function updateMemeLink() {

@@ -2,21 +2,35 @@
 // and the fit played back.
 import { $, SVG_NS, state } from "./state.js";
 
-function drawOverlay(animatedJeans = null) {
+function rectangle(box, cls) {
+  const rect = document.createElementNS(SVG_NS, "rect");
+  rect.setAttribute("x", box[0]);
+  rect.setAttribute("y", box[1]);
+  rect.setAttribute("width", box[2] - box[0]);
+  rect.setAttribute("height", box[3] - box[1]);
+  rect.setAttribute("class", cls);
+  return rect;
+}
+
+// draftBox: the box being dragged, drawn as it goes.
+function drawOverlay(animatedJeans = null, draftBox = null) {
   const svg = $("overlay");
   svg.replaceChildren();
   const answer = state.result;
   if (!answer) return;
-  const unit = Math.max(answer.width, answer.height) / 100;
+  svg.classList.toggle("no-marks", !state.marks);
+  // Markers are a constant size on the screen, whatever the photo's size or zoom.
+  const shown = $("result").clientWidth;
+  const photoPixelsPerScreenPixel = shown > 0 ? answer.width / shown : Math.max(answer.width, answer.height) / 800;
   answer.objects.forEach((object, index) => {
-    for (const ring of object.outline) {
-      const d = "M" + ring.map((p) => `${p[0]},${p[1]}`).join("L") + "Z";
-      for (const cls of ["outline-shadow", index === state.current || !answer.clicks ? "outline" : "outline other"]) {
-        const path = document.createElementNS(SVG_NS, "path");
-        path.setAttribute("d", d);
-        path.setAttribute("class", cls);
-        svg.appendChild(path);
-      }
+    const other = answer.clicks && index !== state.current ? " other" : "";
+    // Every ring in one path: the mask's holes stay holes (even-odd fill).
+    const d = object.outline.map((ring) => "M" + ring.map((p) => `${p[0]},${p[1]}`).join("L") + "Z").join("");
+    for (const cls of [`mask${other}`, "outline-shadow", `outline${other}`]) {
+      const path = document.createElementNS(SVG_NS, "path");
+      path.setAttribute("d", d);
+      path.setAttribute("class", cls);
+      svg.appendChild(path);
     }
   });
   if (animatedJeans) {
@@ -28,12 +42,16 @@ function drawOverlay(animatedJeans = null) {
     }
   }
   state.objects.forEach((object, index) => {
+    if (object.box) svg.appendChild(rectangle(object.box, `box${index === state.current ? "" : " faded"}`));
+  });
+  if (draftBox) svg.appendChild(rectangle(draftBox, "box draft"));
+  state.objects.forEach((object, index) => {
     for (const [sign, points] of [["pos", object.positive], ["neg", object.negative]]) {
       for (const [x, y] of points) {
         const dot = document.createElementNS(SVG_NS, "circle");
         dot.setAttribute("cx", x);
         dot.setAttribute("cy", y);
-        dot.setAttribute("r", unit * 0.9);
+        dot.setAttribute("r", 6 * photoPixelsPerScreenPixel);
         dot.setAttribute("class", `click ${sign}${index === state.current ? "" : " faded"}`);
         svg.appendChild(dot);
       }
@@ -42,30 +60,40 @@ function drawOverlay(animatedJeans = null) {
 }
 
 // ------------------------------------------------------------------ the fit, animated
+// The animation plays the shown result's fit over the photo; a new result (a click
+// answered mid-way) or another photo stops it, and the picture shown is always the
+// newest result's, never one the animation put aside.
 function watchFit() {
   const answer = state.result;
   if (!answer || state.animating) return;
   state.animating = true;
+  const run = ++state.animation;
   const image = $("result");
-  const finished = image.src;
   image.src = `/api/photos/${state.photo}/original`;
   const frames = Math.max(...answer.objects.map((o) => o.trajectory.length));
   const began = performance.now();
   const duration = 2500;
   const step = (now) => {
+    if (run !== state.animation) return;
     const index = Math.min(frames - 1, Math.floor(((now - began) / duration) * frames));
     drawOverlay(answer.objects.map((o) => o.trajectory[Math.min(index, o.trajectory.length - 1)]));
     if (index < frames - 1) {
       requestAnimationFrame(step);
     } else {
       setTimeout(() => {
-        image.src = finished;
-        state.animating = false;
-        drawOverlay();
+        if (run === state.animation) stopAnimation();
       }, 700);
     }
   };
   requestAnimationFrame(step);
 }
 
-export { drawOverlay, watchFit };
+function stopAnimation() {
+  if (!state.animating) return;
+  state.animation += 1;
+  state.animating = false;
+  if (state.result) $("result").src = state.result.preview;
+  drawOverlay();
+}
+
+export { drawOverlay, stopAnimation, watchFit };

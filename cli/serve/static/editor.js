@@ -1,14 +1,28 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
-import { drawOverlay } from "./drawing.js";
+import { drawOverlay, stopAnimation } from "./drawing.js";
 import { post } from "./server.js";
-import { $, hasClicks, setStatus, showError, state } from "./state.js";
+import { $, setStatus, showError, state } from "./state.js";
 
 function renderOptions() {
   return { style: $("style").value, garment: $("garment").value, posture: $("posture").value };
 }
 
 // ------------------------------------------------------------------ upload
+// Every answer belongs to one photo: leaving a photo (another dropped or opened, or
+// "Another photo") starts a new generation, and an answer of an older one is dropped.
+function leavePhoto() {
+  state.generation += 1;
+  state.inFlight = false;
+  state.again = false;
+  state.clickPending = false;
+  stopAnimation();
+  state.photo = null; // no click, render or download for the photo left
+  state.result = null;
+  drawOverlay();
+  return state.generation;
+}
+
 async function upload(file) {
   if (!file) return;
   showError("");
@@ -16,20 +30,52 @@ async function upload(file) {
     showError(`${file.name}: the file is larger than the server's upload limit (${Math.round(state.maxUpload / 1048576)} MB)`);
     return;
   }
+  const generation = leavePhoto();
   setStatus(`Putting jeans on ${file.name}…`, true);
+  showLocal(file, generation);
   const form = new FormData();
   form.append("file", file, file.name);
   form.append("subject", $("subject").value);
   try {
     const answer = await post("/api/photos", form);
-    start(answer, null);
+    if (generation === state.generation) start(answer, null);
   } catch (error) {
+    if (generation !== state.generation) return;
     setStatus("");
     showError(error.message);
+    $("frame").classList.remove("working");
+    $("panel").inert = false;
+    if (!state.result) { // nothing to show: back to the drop zone
+      $("view").hidden = true;
+      $("drop").hidden = false;
+    }
   }
 }
 
+// The dropped photo at once, as the browser decodes it, veiled while the server works;
+// a file the browser cannot show (RAW, TIFF) waits with the drop zone and the status line.
+function showLocal(file, generation) {
+  $("captions").hidden = true;
+  const image = $("result");
+  const local = URL.createObjectURL(file);
+  image.addEventListener("error", () => {
+    if (generation === state.generation && !state.result) {
+      $("view").hidden = true;
+      $("drop").hidden = false;
+    }
+  }, { once: true });
+  image.src = local;
+  $("original-figure").hidden = true;
+  $("frame").classList.add("working");
+  $("panel").inert = true;
+  $("drop").hidden = true;
+  $("view").hidden = false;
+  setTimeout(() => URL.revokeObjectURL(local), 60_000);
+}
+
 function start(answer, item) {
+  $("frame").classList.remove("working");
+  $("panel").inert = false;
   state.photo = answer.photo;
   state.item = item;
   state.kind = answer.kind;
@@ -39,14 +85,22 @@ function start(answer, item) {
   state.objects = [];
   state.current = 0;
   state.history = [];
+  state.future = [];
+  state.saved = null;
   $("drop").hidden = true;
   $("view").hidden = false;
   $("panel").hidden = false;
   $("save").hidden = item === null;
   $("original").src = `/api/photos/${answer.photo}/original`;
   if (answer.clicks && answer.saved_clicks) {
-    state.objects = answer.saved_clicks.map((o) => ({ positive: o.positive, negative: o.negative }));
+    state.objects = answer.saved_clicks.map((o) => ({ positive: o.positive, negative: o.negative, box: o.box || null }));
+    // Each saved box and click is one step to undo, as if it had just been made.
+    state.history = state.objects.flatMap((o, object) => [
+      ...(o.box ? [{ object, box: o.box, before: null }] : []),
+      ...["positive", "negative"].flatMap((sign) => o[sign].map(() => ({ object, sign }))),
+    ]);
   }
+  if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
   updateControls();
 }
@@ -54,6 +108,7 @@ function start(answer, item) {
 // ------------------------------------------------------------------ results
 function show(answer) {
   state.result = answer;
+  stopAnimation();
   const image = $("result");
   image.src = answer.preview;
   const svg = $("overlay");
@@ -66,6 +121,12 @@ function show(answer) {
     link.classList.toggle("disabled", kind === "clicks" && !answer.clicks);
   }
   updateMemeLink();
+  describe(answer);
+}
+
+// The status line for a result: its photo, how many objects, and where they came from.
+function describe(answer) {
+  if (!answer) return;
   const summary = answer.summary;
   const count = summary.objects === 1 ? "1 object" : `${summary.objects} objects`;
   let text = `${state.name}: ${count}, ${answer.clicks ? "from your clicks" : `found by ${summary.method}`}.`;
@@ -87,33 +148,39 @@ async function rerender() {
   const fromClick = state.clickPending;
   state.clickPending = false;
   const sequence = ++state.sequence;
+  const generation = state.generation;
   setStatus("Fitting…", true);
   try {
-    const objects = state.objects.filter(hasClicks);
+    const objects = clickedObjects();
     const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
+    if (generation !== state.generation) return; // another photo since: not this one's
     if (sequence > state.shown) {
       state.shown = sequence;
       showError("");
       if (!state.again) show(answer);
     }
   } catch (error) {
-    setStatus("");
+    if (generation !== state.generation) return;
     showError(error.message);
     // A click the server could not use ("nothing found there") is taken back: the
     // picture, outline and markers stay as they were before it.
     if (fromClick && error.status === 422 && !state.again) takeBack();
+    else setStatus("");
   } finally {
-    state.inFlight = false;
-    if (state.again) rerender();
+    if (generation === state.generation) {
+      state.inFlight = false;
+      if (state.again) rerender();
+    }
   }
 }
 
 function takeBack() {
   const last = state.history.pop();
   if (!last) return;
-  state.objects[last.object][last.sign].pop();
+  stepBack(last);
   drawOverlay();
   updateControls();
+  describe(state.result);
 }
 
 // ------------------------------------------------------------------ clicks
@@ -125,49 +192,158 @@ function photoPoint(event) {
   return [Math.round(clamp(x, state.width) * 10) / 10, Math.round(clamp(y, state.height) * 10) / 10];
 }
 
+// ------------------------------------------------------------------ boxes
+// A drag on the photo (mouse or pen) draws a box around the object; a click stays a click.
+let drag = null;
+
+function boxOf(a, b) {
+  return [Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.max(a[0], b[0]), Math.max(a[1], b[1])];
+}
+
+function pointerDown(event) {
+  state.dragged = false;
+  if (state.kind !== "photo" || !state.result || event.button !== 0 || event.pointerType === "touch") return;
+  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false };
+}
+
+function pointerMove(event) {
+  if (!drag) return;
+  if (!drag.moved && Math.hypot(event.clientX - drag.x, event.clientY - drag.y) < 6) return;
+  if (!drag.moved) $("frame").setPointerCapture(event.pointerId);
+  drag.moved = true;
+  drawOverlay(null, boxOf(drag.start, photoPoint(event)));
+}
+
+function pointerUp(event) {
+  if (!drag) return;
+  const done = drag;
+  drag = null;
+  if (!done.moved) return; // a click: the click event adds it
+  if (event.type === "pointercancel") {
+    drawOverlay();
+    return;
+  }
+  state.dragged = true;
+  const box = boxOf(done.start, photoPoint(event));
+  if (box[2] - box[0] < 2 || box[3] - box[1] < 2) {
+    drawOverlay();
+    return;
+  }
+  if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
+  const object = state.objects[state.current];
+  state.history.push({ object: state.current, box, before: object.box || null });
+  object.box = box;
+  state.future = [];
+  state.clickPending = true; // taken back if nothing is found in it
+  changed();
+}
+
 function addClick(event) {
   if (state.kind !== "photo" || !state.result) return;
   event.preventDefault();
   const negative = state.negative || event.shiftKey || event.altKey || event.ctrlKey || event.metaKey || event.button === 2;
-  if (!state.objects[state.current]) state.objects[state.current] = { positive: [], negative: [] };
+  if (state.dragged) { // the end of a drag: its box is made
+    state.dragged = false;
+    return;
+  }
+  if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
   const object = state.objects[state.current];
   // A negative click first means "the automatic subject, minus this" (the server does it).
   (negative ? object.negative : object.positive).push(photoPoint(event));
   state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
+  state.future = [];
   state.clickPending = true;
-  drawOverlay();
-  updateControls();
-  rerender();
+  changed();
 }
 
+function emptyObject() {
+  return { positive: [], negative: [], box: null };
+}
+
+// The clicks to send: the objects that have a positive click or a box.
+function clickedObjects() {
+  // Negative clicks alone are an object too: the automatic subject minus them.
+  return state.objects.filter((o) => o.positive.length > 0 || o.negative.length > 0 || o.box)
+    .map((o) => (o.box ? { positive: o.positive, negative: o.negative, box: o.box } : { positive: o.positive, negative: o.negative }));
+}
+
+function clicksKey() {
+  return JSON.stringify(clickedObjects());
+}
+
+// Undo and Redo: each step is a click ({object, sign}), a box ({object, box, before})
+// or a Reset ({reset: the clicks it cleared, current}); a new step forgets what could be redone.
 function undo() {
   const last = state.history.pop();
   if (!last) return;
-  state.objects[last.object][last.sign].pop();
-  if (state.objects[last.object].positive.length === 0 && state.objects[last.object].negative.length === 0
+  state.future.push(stepBack(last));
+  changed();
+}
+
+// Undo one step; what Redo needs to make it again.
+function stepBack(last) {
+  if (last.reset) { // the clicks a Reset cleared come back
+    state.objects = JSON.parse(last.reset);
+    state.current = last.current;
+    return last;
+  }
+  const object = state.objects[last.object];
+  let step = last;
+  if ("box" in last) object.box = last.before;
+  else step = { ...last, point: object[last.sign].pop() };
+  if (object.positive.length === 0 && object.negative.length === 0 && !object.box
       && last.object === state.objects.length - 1 && last.object > 0) {
     state.objects.pop();
     state.current = Math.min(state.current, state.objects.length - 1);
   }
-  drawOverlay();
-  updateControls();
-  rerender();
+  return step;
+}
+
+function redo() {
+  const next = state.future.pop();
+  if (!next) return;
+  if (next.reset) {
+    clearClicks();
+  } else {
+    while (state.objects.length <= next.object) state.objects.push(emptyObject());
+    const object = state.objects[next.object];
+    if ("box" in next) {
+      object.box = next.box;
+      state.history.push(next);
+    } else {
+      object[next.sign].push(next.point);
+      state.history.push({ object: next.object, sign: next.sign });
+    }
+    state.current = next.object;
+  }
+  changed();
 }
 
 function reset() {
+  if (state.objects.length === 0) return;
+  state.future = [];
+  clearClicks();
+  changed(); // the markers go now, not when the automatic result is in
+}
+
+function clearClicks() {
+  state.history.push({ reset: JSON.stringify(state.objects), current: state.current }); // Undo brings them back
   state.objects = [];
   state.current = 0;
-  state.history = [];
+}
+
+function changed() {
+  drawOverlay();
   updateControls();
   rerender();
 }
 
 function newObject() {
   const last = state.objects[state.objects.length - 1];
-  if (last && !hasClicks(last)) {
+  if (last && last.positive.length === 0 && last.negative.length === 0 && !last.box) {
     state.current = state.objects.length - 1;
   } else {
-    state.objects.push({ positive: [], negative: [] });
+    state.objects.push(emptyObject());
     state.current = state.objects.length - 1;
   }
   drawOverlay();
@@ -183,17 +359,21 @@ function setMode(negative) {
 
 function updateControls() {
   const photo = state.kind === "photo";
-  for (const id of ["mode-add", "mode-remove", "new-object", "undo", "reset"]) $(id).disabled = !photo;
+  for (const id of ["mode-add", "mode-remove", "new-object", "undo", "redo", "reset"]) $(id).disabled = !photo;
   $("undo").disabled = !photo || state.history.length === 0;
+  $("redo").disabled = !photo || state.future.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
-  $("new-object").disabled = !photo || !state.objects.some(hasClicks);
-  $("save").disabled = !state.objects.some(hasClicks);
+  $("new-object").disabled = !photo || clickedObjects().length === 0;
+  // Save what differs from the folder's: new clicks, or none (back to automatic).
+  const clicked = clickedObjects().length > 0;
+  $("save").disabled = state.saved === null || clicksKey() === state.saved;
+  $("save").textContent = clicked || state.saved === clicksKey() ? "Save to folder" : "Revert to automatic";
   const list = $("objects");
   list.replaceChildren();
   state.objects.forEach((object, index) => {
     const button = document.createElement("button");
     button.type = "button";
-    button.textContent = `Object ${index + 1} (${object.positive.length}+ ${object.negative.length}\u2212)`;
+    button.textContent = `Object ${index + 1} (${object.positive.length}+ ${object.negative.length}\u2212${object.box ? ", box" : ""})`;
     button.setAttribute("aria-pressed", String(index === state.current));
     button.addEventListener("click", () => {
       state.current = index;
@@ -204,4 +384,4 @@ function updateControls() {
   });
 }
 
-export { addClick, newObject, rerender, reset, setMode, start, undo, upload };
+export { addClick, clickedObjects, describe, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };

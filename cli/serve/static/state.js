@@ -13,20 +13,22 @@ const state = {
   height: 0,
   objects: [], // [{positive: [[x, y]], negative: [[x, y]]}]
   current: 0,
-  history: [], // [{object, sign}] for undo
+  history: [], // [{object, sign}] or [{reset, current}] for undo
+  future: [], // the steps undone, for redo
+  saved: null, // the folder's clicks for this photo (clicksKey()), null outside folder mode
   result: null, // last answer of the server
   negative: false, // the touch toggle
   sequence: 0, // renders sent
   shown: 0, // the newest render shown
   inFlight: false,
   again: false,
+  dragged: false, // the press that ends now was a drag (its box is made; it is no click)
   clickPending: false, // the next render was asked for by a click (taken back if it fails)
   animating: false,
+  marks: true, // the outline, mask and clicks drawn over the photo (O hides them)
+  animation: 0, // the running animation's number (a newer one, or a stop, ends it)
+  generation: 0, // the photo's number: answers for an earlier one are dropped
 };
-
-// An object the server can use: a positive click, or negative clicks alone (the
-// automatic subject minus them).
-const hasClicks = (object) => object.positive.length > 0 || object.negative.length > 0;
 
 function setStatus(text, busy = false) {
   $("status").textContent = text;
@@ -38,4 +40,4 @@ function showError(text) {
   $("error").hidden = !text;
 }
 
-export { $, SVG_NS, hasClicks, setStatus, showError, state };
+export { $, SVG_NS, setStatus, showError, state };
