@@ -91,7 +91,16 @@ def test_folder_mode_never_follows_a_symbolic_link(make_client, folder, tmp_path
     (folder / "pets.clicks.json").symlink_to(outside / "x.clicks.json")
     client = make_client(folder=folder)
     items = client.get("/api/folder").json()["items"]
-    assert items == [{"item": 0, "name": "pets.png", "output": False, "clicks": False, "thumb": "/api/folder/0/thumb"}]
+    assert items == [
+        {
+            "item": 0,
+            "name": "pets.png",
+            "output": False,
+            "clicks": False,
+            "thumb": "/api/folder/0/thumb",
+            "uncertain": None,
+        }
+    ]
     thumb = client.post("/api/folder/0/thumb")
     assert thumb.status_code == 422 and "symbolic link" in thumb.json()["error"]
     opened = client.post("/api/folder/0/open")

@@ -234,18 +234,44 @@ class Guard:
 UNEXPECTED = "unexpected error (the server's terminal says more)"
 
 
+_console = None
+
+
+def keep_console() -> None:
+    """Keep a copy of the terminal's file descriptor 2 for the server's own lines.
+
+    While a photo is decoded, the decoders' own complaints are silenced by pointing
+    descriptor 2 at /dev/null for the whole process (``jeanscv.io.image``); a line the
+    server printed then (its "stopped" on a Ctrl-C during an upload) was lost."""
+    import os
+    import sys
+
+    global _console
+    try:
+        _console = os.fdopen(os.dup(sys.stderr.fileno()), "w", encoding="utf-8", errors="replace", buffering=1)
+    except (OSError, ValueError, AttributeError):  # no real descriptor 2 (embedded): sys.stderr then
+        _console = None
+
+
+def console():
+    """Where the server's own lines go: the kept terminal (:func:`keep_console`), else
+    ``sys.stderr``."""
+    import sys
+
+    return _console or sys.stderr
+
+
 def log_unexpected(exc: BaseException, where: str, debug: bool) -> None:
     """One line on the terminal for an error that is not a bad input (the command line's
     reason for it); the traceback too with ``--debug``. A client gets only :data:`UNEXPECTED`
     or the one-line reason."""
-    import sys
     import traceback
 
     from jeanscv.run.runner import failure_reason  # only when an error happens
 
-    print(f"jeanscv serve: {where}: {failure_reason(exc)}", file=sys.stderr, flush=True)
+    print(f"jeanscv serve: {where}: {failure_reason(exc)}", file=console(), flush=True)
     if debug:
-        traceback.print_exception(exc, file=sys.stderr)
+        traceback.print_exception(exc, file=console())
 
 
 async def _refuse(send, status: int, reason: str) -> None:

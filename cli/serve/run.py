@@ -16,7 +16,6 @@ import errno
 import os
 import signal
 import socket
-import sys
 import threading
 import webbrowser
 from pathlib import Path
@@ -30,7 +29,9 @@ MAX_CONNECTIONS = 64
 
 
 def _say(message: str) -> None:
-    print(f"jeanscv serve: {message}", file=sys.stderr, flush=True)
+    from .guard import console
+
+    print(f"jeanscv serve: {message}", file=console(), flush=True)
 
 
 def default_workers() -> int:
@@ -88,6 +89,9 @@ def run_server(
 ) -> int:
     """Serve until Ctrl-C (0) or SIGTERM (143); 1 when it cannot listen. The caller
     should end the process soon after (see the module's docstring)."""
+    from .guard import keep_console
+
+    keep_console()  # before any photo is decoded (which silences descriptor 2 meanwhile)
     sock = listen(host, port)
     if isinstance(sock, str):
         _say(sock)
@@ -121,6 +125,17 @@ def run_server(
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else shown}:{port}/"
     what = f"the photos of {folder}" if folder is not None else "a page to drop photos on"
+    # From the line that says "Ctrl-C stops" on, a Ctrl-C or SIGTERM stops the server the
+    # same way ("stopped", exit 0 or 143), even one that comes before uvicorn takes the
+    # signals over (under load the first second after the line; it ended the process
+    # without a word).
+    early: list[int] = []
+    on_main = threading.current_thread() is threading.main_thread()
+    before = (
+        {sig: signal.signal(sig, lambda sig, frame: early.append(sig)) for sig in (signal.SIGINT, signal.SIGTERM)}
+        if on_main
+        else {}
+    )
     _say(f"{what} at {url} (Ctrl-C stops)")
     if open_browser:
         opener = threading.Timer(1.0, webbrowser.open, (url,))
@@ -141,14 +156,19 @@ def run_server(
             http=_protocol(),
         ),
         state,
+        early,
     )
     try:
-        server.run(sockets=[sock])
+        if not early:
+            server.run(sockets=[sock])
     except KeyboardInterrupt:  # a Ctrl-C before the server took the signals over
         pass
     finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
         state.close()
         sock.close()
+    server.stopped_by = server.stopped_by or (early[0] if early else None)
     _say("stopped")
     return 128 + signal.SIGTERM if server.stopped_by == signal.SIGTERM else 0
 
@@ -160,9 +180,10 @@ def _server_class():
         """uvicorn's server whose Ctrl-C and SIGTERM stop it at once: waiting and running
         requests are answered first, and the signal is not raised again afterwards."""
 
-        def __init__(self, config, state) -> None:
+        def __init__(self, config, state, early: list[int]) -> None:
             super().__init__(config)
             self.state = state
+            self.early = early  # signals that came before capture_signals
             self.stopped_by: int | None = None
 
         @contextlib.contextmanager
@@ -179,6 +200,8 @@ def _server_class():
                 self.should_exit = True
 
             previous = {sig: signal.signal(sig, handle) for sig in (signal.SIGINT, signal.SIGTERM)}
+            if self.early:
+                handle(self.early[0], None)
             try:
                 yield
             finally:

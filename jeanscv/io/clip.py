@@ -186,6 +186,8 @@ class ClipReader:
         try:
             image = Image.open(self._file)
             image.load()
+        except Image.DecompressionBombError:  # Pillow's own cap, before ours is asked
+            raise JeansError("its frames are too large (more pixels than any clip this reads)") from None
         except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
             raise JeansError(f"not a WebP animation this build can read ({_reason(exc)})") from None
         self._pillow = image
