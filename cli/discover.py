@@ -13,6 +13,10 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+#: A photo's clicks beside it (``cat.clicks.json``, as ``jeanscv serve FOLDER`` saves them:
+#: :data:`jeanscv.subject.clicks.SIDECAR_SUFFIX`, not imported to keep discovery light).
+CLICKS_SIDECAR = ".clicks.json"
+
 OUTPUT_FORMATS = ("png", "jpg", "webp", "gif", "mp4")
 
 # Output extension kept for photos whose format the writers can encode; everything
@@ -148,8 +152,8 @@ def collect(
     def add_folder(folder: str) -> None:
         any_found = False
         for parts in _walk(Path(folder), recursive):
-            if _is_own_output_name(parts[-1]):
-                continue
+            if _is_own_output_name(parts[-1]) or parts[-1].lower().endswith(CLICKS_SIDECAR):
+                continue  # a photo's clicks file goes with its photo: no input, none skipped
             if os.path.splitext(parts[-1])[1].lower() in extensions:
                 add(folder, folder, parts)
                 any_found = True

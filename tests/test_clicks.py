@@ -264,6 +264,8 @@ def test_clicks_saved_beside_a_photo_are_used_and_make_its_output_stale(tmp_path
     os.utime(sidecar_path(folder / "a.png"), (stamp, stamp))
     result = run_cli(folder, "--json", "-j", "1", *CLI_FIT)
     assert result.exit_code == 0, result.stderr
+    # a redone, b's output kept; the clicks file is a's, not an input skipped (issue 32).
+    assert "1 ok, 0 failed, 1 skipped" in result.stderr
     assert (folder / "b.jeans.png").read_bytes() == before["b"]
     report = json.loads((folder / "a.jeans.json").read_text())
     assert report["clicks"]["objects"][0]["positive"] == [list(DISC_CLICK)]
