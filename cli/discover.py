@@ -13,9 +13,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-#: A photo's clicks beside it (``cat.clicks.json``, as ``jeanscv serve FOLDER`` saves them:
-#: :data:`jeanscv.subject.clicks.SIDECAR_SUFFIX`, not imported to keep discovery light).
-CLICKS_SIDECAR = ".clicks.json"
+from jeanscv.subject.clicks import SIDECAR_SUFFIX
 
 OUTPUT_FORMATS = ("png", "jpg", "webp", "gif", "mp4")
 
@@ -152,7 +150,7 @@ def collect(
     def add_folder(folder: str) -> None:
         any_found = False
         for parts in _walk(Path(folder), recursive):
-            if _is_own_output_name(parts[-1]) or parts[-1].lower().endswith(CLICKS_SIDECAR):
+            if _is_own_output_name(parts[-1]) or parts[-1].lower().endswith(SIDECAR_SUFFIX):
                 continue  # a photo's clicks file goes with its photo: no input, none skipped
             if os.path.splitext(parts[-1])[1].lower() in extensions:
                 add(folder, folder, parts)

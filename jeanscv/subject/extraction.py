@@ -207,17 +207,10 @@ def _disjoint(segmentations: list, objects) -> list:
     with nothing is an error naming it."""
     import dataclasses
 
-    import cv2
-
-    from .masks import disjoint, outer_contour
-
-    def deepest(mask: np.ndarray) -> list[tuple[float, float]]:
-        depth = cv2.distanceTransform(np.pad(mask.view(np.uint8), 1), cv2.DIST_L2, 3)[1:-1, 1:-1]
-        y, x = np.unravel_index(int(np.argmax(depth)), depth.shape)
-        return [(float(x), float(y))]
+    from .masks import deepest_point, disjoint, outer_contour
 
     masks = [s.mask for s in segmentations]
-    seeds = [list(obj.positive) or deepest(mask) for obj, mask in zip(objects, masks)]
+    seeds = [list(obj.positive) or [deepest_point(mask)] for obj, mask in zip(objects, masks)]
     result = []
     for index, (segmentation, mask) in enumerate(zip(segmentations, disjoint(masks, seeds))):
         if mask is not segmentation.mask:

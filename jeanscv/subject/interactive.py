@@ -42,6 +42,7 @@ from .grabcut import run_grabcut
 from .masks import (
     MIN_AREA_FRACTION,
     MORPH_FRACTION,
+    deepest_point,
     disk,
     downscale,
     fill_holes,
@@ -249,6 +250,10 @@ class ClickSession:
         keep = (pos + [(x, y) for x, y in stand_in if mask[y, x]]) or _largest_piece_point(mask)
         if mask.any() and keep:
             mask = _constrained(self._pixels.refine(_constrained(mask, keep, neg)), keep, neg) & inside
+        return self._remember(key, mask)
+
+    def _remember(self, key: tuple, mask: np.ndarray) -> np.ndarray:
+        """``mask``, kept under ``key``; the oldest goes first: a session stays bounded."""
         if len(self._cache) >= _CACHED_SEQUENCES:
             del self._cache[next(iter(self._cache))]
         self._cache[key] = mask
@@ -269,10 +274,7 @@ class ClickSession:
             keep = _largest_piece_point(mask)
             if keep:
                 mask = _constrained(self._pixels.refine(mask), keep, [p for _, p in clicks])
-        if len(self._cache) >= _CACHED_SEQUENCES:
-            del self._cache[next(iter(self._cache))]
-        self._cache[key] = mask
-        return mask
+        return self._remember(key, mask)
 
     def _automatic(self) -> np.ndarray:
         """The automatic subject at working resolution (empty when auto finds none)."""
@@ -300,10 +302,7 @@ class ClickSession:
         # The refinement's colour models can erase a small object whole (a dark cat on a
         # dark monitor): then the superpixel mask stands.
         mask = refined if np.count_nonzero(refined) >= min(self._smallest, np.count_nonzero(mask)) else mask
-        if len(self._cache) >= _CACHED_SEQUENCES:
-            del self._cache[next(iter(self._cache))]  # the oldest: a session stays bounded
-        self._cache[clicks] = mask
-        return mask
+        return self._remember(clicks, mask)
 
     def _first(self, point: tuple[int, int]) -> np.ndarray:
         """The mask after one positive click: of auto's hypotheses that hold the click,
@@ -449,15 +448,10 @@ def _box_pixels(box: Box, size: tuple[int, int], target: tuple[int, int] | None 
 
 def _largest_piece_point(mask: np.ndarray) -> list[tuple[int, int]]:
     """A pixel ``(x, y)`` deepest inside the largest piece of ``mask`` ([] when empty)."""
-    if not mask.any():
-        return []
-    # A 3x3 distance mask, not _interior_distance's 5x5: the box figures in
-    # docs/clicks.md were measured with it (the 5x5 mask's distances differ a little, and
-    # so do the points it picks).
-    piece = np.pad(largest_component(mask).astype(np.uint8), 1)
-    depth = cv2.distanceTransform(piece, cv2.DIST_L2, 3)[1:-1, 1:-1]
-    y, x = np.unravel_index(int(np.argmax(depth)), depth.shape)
-    return [(int(x), int(y))]
+    # masks.deepest_point's 3x3 distance mask, not _interior_distance's 5x5: the box
+    # figures in docs/clicks.md were measured with it (the 5x5 mask's distances differ a
+    # little, and so do the points it picks).
+    return [deepest_point(largest_component(mask))] if mask.any() else []
 
 
 def _box_mask(box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndarray:

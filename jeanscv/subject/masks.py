@@ -148,6 +148,14 @@ def largest_component(mask: np.ndarray) -> np.ndarray:
     return labels == 1 + int(np.argmax(np.bincount(labels.ravel(), minlength=count)[1:]))
 
 
+def deepest_point(mask: np.ndarray) -> tuple[int, int]:
+    """The pixel ``(x, y)`` of a non-empty bool mask farthest from its boundary (the image
+    border counts; OpenCV's 3x3 Euclidean distance; ties: the first in row order)."""
+    depth = cv2.distanceTransform(np.pad(mask.astype(np.uint8), 1), cv2.DIST_L2, 3)[1:-1, 1:-1]
+    y, x = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    return int(x), int(y)
+
+
 def disjoint(masks: list[np.ndarray], seeds: list[list[tuple[float, float]]]) -> list[np.ndarray]:
     """``masks`` ``(H, W) bool`` made disjoint: a pixel that several claim goes to the one
     with the nearest seed (``(x, y)`` pixels, each mask's own; ties: the earlier mask),
