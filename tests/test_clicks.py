@@ -487,3 +487,21 @@ def test_the_same_photo_at_another_pixel_size_gives_the_same_subject(factor):
     automatic_there = extract_silhouettes(other)[0].mask >= 0.5
     both = body | head
     assert abs(_iou(automatic_there, scaled["body"] | scaled["head"]) - _iou(automatic, both)) < 0.05
+
+
+def test_the_geodesic_grabcut_takes_the_clicked_shape_exactly():
+    """Two touching rectangles (red, green) on blue: a click on red alone takes the whole
+    red-green shape (nearer the click than the border), a negative click on green leaves
+    red alone; both exactly, at the image's size though the cut runs on a 160-px copy."""
+    from jeanscv.subject.click_parts import geodesic_grabcut
+
+    image = np.zeros((240, 320, 3), np.uint8)
+    image[...] = (40, 60, 200)
+    image[60:180, 80:160] = (220, 40, 30)
+    image[60:180, 160:240] = (30, 200, 60)
+    shape = np.zeros((240, 320), bool)
+    shape[60:180, 80:240] = True
+    red = np.zeros_like(shape)
+    red[60:180, 80:160] = True
+    np.testing.assert_array_equal(geodesic_grabcut(image, [(120, 120)]), shape)
+    np.testing.assert_array_equal(geodesic_grabcut(image, [(120, 120)], [(200, 120)]), red)

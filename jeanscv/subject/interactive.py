@@ -11,23 +11,23 @@ clicks ``(x, y)`` image pixels, package convention (pixel ``(c, r)`` covers
 How: the session works on a copy with long side ``WORKING_SIZE``, with SLIC superpixels
 joined by their Lab distances. The first positive click chooses, among auto's hypotheses
 that hold it (:func:`jeanscv.subject.photo.hypotheses`), a GrabCut seeded at the
-click, and what is geodesically nearer the click than the image border (boundary
-connectivity, Zhu et al. 2014), the one the others agree with most and that the click
-lies deepest in; the piece under the click is kept. Every further click is a geodesic
+click, what is geodesically nearer the click than the image border (boundary
+connectivity, Zhu et al. 2014) and a GrabCut seeded by that partition
+(:func:`~.click_parts.geodesic_grabcut`), the one the others agree with most and that
+the click lies deepest in; the piece under the click is kept. Every further click is a geodesic
 correction on the superpixels (Bai and Sapiro 2007; Gulshan et al. 2010's geodesic
 seeds): on the side of the mask where the click landed, what the click reaches more
 cheaply than the other side's stand-ins changes sides; a positive click off the mask may
 instead add the piece of one of auto's hypotheses that holds it, when the others agree.
 After every click the pixels within a superpixel's width of the boundary are decided
 again by local colour models, smoothed by a guided filter (thin parts, fine outlines).
-The clicks are hard: the mask
-holds every positive click and none of the negative ones; the pieces without a
-positive click are dropped, holes filled unless a negative click is in one.
+The clicks are hard: the mask holds every positive click and none of the negative
+ones; the pieces without a positive click are dropped, holes filled unless a negative
+click is in one.
 """
 
 from __future__ import annotations
 
-import heapq
 import math
 from collections.abc import Sequence
 
@@ -37,8 +37,15 @@ import numpy as np
 from jeanscv.errors import JeansError
 from jeanscv.subject.clicks import Box, ObjectClicks
 
+from .click_parts import (
+    SEED_FRACTION,
+    ClickGraph,
+    PixelRefiner,
+    geodesic_grabcut,
+    interior_distance,
+    seeded_grabcut,
+)
 from .consensus import border_shares, iou, spans_width
-from .grabcut import run_grabcut
 from .masks import (
     MIN_AREA_FRACTION,
     MORPH_FRACTION,
@@ -57,13 +64,6 @@ from .photo import Segmentation, SharedHypotheses, _validate_image
 WORKING_SIZE = 480
 #: Long side of the copy auto's hypotheses are made from (as :func:`photo.segment`).
 SCENE_SIZE = 640
-_ITERATIONS = 3
-#: Radius of a click's hard seed, as a fraction of the working copy's short side.
-_SEED_FRACTION = 0.012
-#: Superpixel size, as a fraction of the working copy's long side.
-_REGION_FRACTION = 0.02
-#: Lab steps between neighbouring superpixels below this cost nothing (noise, texture).
-_STEP_FLOOR = 4.0
 #: Background border superpixels nearer the click than this many times its depth do not
 #: stand for the background (the missed part may leave the frame there).
 _ANCHOR_REACH = 1.5
@@ -83,17 +83,6 @@ _CUT_SIZE = 160
 #: A hypothesis piece that a positive click offers may not reach more than this share of
 #: the top, left or right side where the mask does not reach it already.
 _PIECE_CONTACT = 0.1
-#: The pixel refinement: colour histograms of ``_COLOUR_BITS`` bits a channel, learned
-#: within ``_MODEL_REACH`` superpixel widths of the boundary; the mask's weight as a
-#: prior; the guided filter's radius (a share of a superpixel's width) and its
-#: regularisation (RGB in [0, 1]). On the shared photos a prior of 0.15 gives IoU@5
-#: 0.859 and 0.3 gives 0.854, but 0.15 lets white trousers leak into a white sky and
-#: loses 0.08 on the hockey players after three clicks: the stronger prior is safer.
-_COLOUR_BITS = 4
-_MODEL_REACH = 2.0
-_PRIOR_WEIGHT = 0.3
-_FILTER_FRACTION = 0.4
-_FILTER_EPS = 0.01
 #: Weight of the click's relative depth against agreement when the first click chooses.
 _DEPTH_WEIGHT = 0.5
 
@@ -131,11 +120,11 @@ class ClickSession:
             for name, mask in (found.coarse.items() if found is not None else ())
         }
         self._cache: dict[tuple, np.ndarray] = {}
-        self._seed_radius = max(1, round(_SEED_FRACTION * min(self.size)))
+        self._seed_radius = max(1, round(SEED_FRACTION * min(self.size)))
         #: Fewer working pixels than a click's seed disc are no object (see :meth:`segment`).
         self._smallest = max(4, int(math.pi * self._seed_radius**2))
-        self._graph = _ClickGraph(self.rgb)
-        self._pixels = _PixelRefiner(self.rgb)
+        self._graph = ClickGraph(self.rgb)
+        self._pixels = PixelRefiner(self.rgb)
 
     # ------------------------------------------------------------------ coordinates
     def _to_working(self, point: Point) -> tuple[int, int]:
@@ -243,7 +232,7 @@ class ClickSession:
             mask = np.where(near, mask, previous)
         else:
             labels = np.where(inside, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
-            mask = _seeded_grabcut(self.rgb, labels, [], [], self._seed_radius) & inside
+            mask = seeded_grabcut(self.rgb, labels, [], [], self._seed_radius) & inside
             stand_in = []
         pos = [p for sign, p in clicks if sign == "+"]
         neg = [p for sign, p in clicks if sign == "-"]
@@ -312,7 +301,10 @@ class ClickSession:
         x, y = point
         candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
         candidates["click"] = self._click_grabcut(point)
-        candidates["geodesic"] = self._geodesic_first(point)
+        region = self._geodesic_first(point)
+        if region is not None:  # an edge round the click: the geodesic GrabCut has one to find
+            candidates["geodesic"] = region
+            candidates["geocut"] = _constrained(geodesic_grabcut(self.rgb, [point]), [point], [])
         # A candidate of a few seed discs is a GrabCut collapsed onto its seed: the
         # click's depth in it is the greatest, so it would win the choice and the
         # refinement erase it. On the shared photos, leaving such candidates out raised
@@ -323,7 +315,11 @@ class ClickSession:
         candidates = {name: m for name, m in candidates.items() if np.count_nonzero(m) >= least}
         if not candidates:  # the clicked pixel alone: segment() says nothing was found
             return _constrained(np.zeros(self.rgb.shape[:2], bool), [point], [])
-        return _constrained(candidates[_agreed(candidates, point, "click")], [point], [])
+        # Ties go to the geodesic GrabCut: of the candidates, the one that generalises (it
+        # is the issue's classical baseline's first step, which held up on photos nobody
+        # here tuned for).
+        tie = "geocut" if "geocut" in candidates else "click"
+        return _constrained(candidates[_agreed(candidates, point, tie)], [point], [])
 
     def _click_grabcut(self, point: tuple[int, int]) -> np.ndarray:
         """GrabCut seeded at the click, on a copy of ``_CUT_SIZE``: probably the object
@@ -339,14 +335,15 @@ class ClickSession:
         cv2.circle(labels, (px, py), max(2, round(_PROBABLE_RADIUS * short)), int(cv2.GC_PR_FGD), -1)
         ring = max(1, round(0.02 * short))
         labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_BGD,) * 4
-        radius = max(1, round(_SEED_FRACTION * short))
-        cut = _seeded_grabcut(small, labels, [(px, py)], [], radius)
+        radius = max(1, round(SEED_FRACTION * short))
+        cut = seeded_grabcut(small, labels, [(px, py)], [], radius)
         mask = resize(cut.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
         return _constrained(mask, [point], [])
 
-    def _geodesic_first(self, point: tuple[int, int]) -> np.ndarray:
+    def _geodesic_first(self, point: tuple[int, int]) -> np.ndarray | None:
         """What is geodesically nearer the click than the image border (the background
-        spreads along the border: Zhu et al. 2014), as superpixels."""
+        spreads along the border: Zhu et al. 2014), as superpixels; None where no edge
+        surrounds it (a click on plain background)."""
         x, y = point
         graph = self._graph
         node = int(graph.labels[y, x])
@@ -361,7 +358,7 @@ class ClickSession:
         if graph.contrast(region) < _EDGE_CONTRAST:
             # No edge along its boundary (a click on plain background: the click and the
             # border reach everything for nothing, and ties split it anyhow): no object.
-            return _constrained(np.zeros(graph.labels.shape, bool), [point], [])
+            return None
         return _constrained(region[graph.labels], [point], [])
 
     def _step(self, previous: np.ndarray, clicks: tuple, keep: Sequence[tuple[int, int]] = ()) -> np.ndarray:
@@ -448,7 +445,7 @@ def _box_pixels(box: Box, size: tuple[int, int], target: tuple[int, int] | None 
 
 def _largest_piece_point(mask: np.ndarray) -> list[tuple[int, int]]:
     """A pixel ``(x, y)`` deepest inside the largest piece of ``mask`` ([] when empty)."""
-    # masks.deepest_point's 3x3 distance mask, not _interior_distance's 5x5: the box
+    # masks.deepest_point's 3x3 distance mask, not interior_distance's 5x5: the box
     # figures in docs/clicks.md were measured with it (the 5x5 mask's distances differ a
     # little, and so do the points it picks).
     return [deepest_point(largest_component(mask))] if mask.any() else []
@@ -460,28 +457,6 @@ def _box_mask(box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndar
     inside = np.zeros(shape, bool)
     inside[y0:y1, x0:x1] = True
     return inside
-
-
-def _seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, radius: int) -> np.ndarray:
-    """GrabCut from ``labels`` with discs of ``radius`` at the clicks as hard seeds (a disc
-    stops short of halfway to the nearest click of the other sign)."""
-    labels = labels.copy()
-    for sign, points, others in ((cv2.GC_FGD, pos, neg), (cv2.GC_BGD, neg, pos)):
-        for x, y in points:
-            r = radius
-            if others:
-                gap = min(np.hypot(x - ox, y - oy) for ox, oy in others)
-                r = max(0, min(r, int(gap / 2) - 1))
-            cv2.circle(labels, (x, y), r, int(sign), -1)
-            labels[y, x] = sign
-    has_fg = ((labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)).any()
-    has_bg = ((labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)).any()
-    if not (has_fg and has_bg) or min(labels.shape) < 4:
-        return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
-    try:
-        return run_grabcut(rgb, labels, _ITERATIONS)
-    except JeansError:
-        return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
 
 
 def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
@@ -508,43 +483,6 @@ def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
     for x, y in neg:
         filled[y, x] = False
     return filled
-
-
-class _PixelRefiner:
-    """Re-decides the pixels near a superpixel mask's boundary, where superpixels are too
-    coarse (thin parts, fine outlines): each pixel of a band one superpixel wide takes
-    the side its colour is likelier on, by histograms of the colours just inside and just
-    outside the mask (GrabCut's colour models, Rother et al. 2004, learned locally), with
-    a little of the mask itself as a prior; the probabilities are smoothed with a guided
-    filter of the image (edge-aware smoothing in place of a graph cut's: cost-volume
-    filtering, Rhemann et al. 2011; guided filter, He et al. 2010), then halved."""
-
-    def __init__(self, rgb: np.ndarray):
-        self.guide = rgb.astype(np.float32) / 255.0
-        bins = (rgb >> (8 - _COLOUR_BITS)).astype(np.int32)
-        self.colour = (bins[..., 0] << (2 * _COLOUR_BITS)) | (bins[..., 1] << _COLOUR_BITS) | bins[..., 2]
-        self.band = max(2, round(_REGION_FRACTION * max(rgb.shape[:2])))
-        self.radius = max(1, round(_FILTER_FRACTION * self.band))
-
-    def refine(self, mask: np.ndarray) -> np.ndarray:
-        if mask.all() or not mask.any():
-            return mask
-        inside = _interior_distance(mask)
-        outside = _interior_distance(~mask)
-        depth = np.maximum(inside, outside)  # distance to the boundary, either side
-        near = depth <= _MODEL_REACH * self.band
-        band = depth <= self.band
-        count = 1 << (3 * _COLOUR_BITS)
-        fg = np.bincount(self.colour[near & mask], minlength=count) + 1.0
-        bg = np.bincount(self.colour[near & ~mask], minlength=count) + 1.0
-        fg /= fg.sum()
-        bg /= bg.sum()
-        likely = (fg / (fg + bg)).astype(np.float32)[self.colour]
-        belief = (1.0 - _PRIOR_WEIGHT) * likely + _PRIOR_WEIGHT * mask.astype(np.float32)
-        smooth = cv2.ximgproc.guidedFilter(self.guide, belief, self.radius, _FILTER_EPS)
-        refined = mask.copy()
-        refined[band] = smooth[band] >= 0.5
-        return refined
 
 
 def _agreed(candidates: dict[str, np.ndarray], point: tuple[int, int], tie: str) -> str:
@@ -575,81 +513,13 @@ def _new_border_strip(addition: np.ndarray, previous: np.ndarray) -> bool:
 
 def _depth(region: np.ndarray, x: int, y: int) -> float:
     """Distance (pixels, at least 2) from (x, y) to the boundary of ``region``."""
-    return max(2.0, float(_interior_distance(region)[y, x]))
-
-
-class _ClickGraph:
-    """SLIC superpixels of the working copy and their adjacency, weighted by the Lab
-    distance of neighbours (less a noise floor), for geodesic distances."""
-
-    def __init__(self, rgb: np.ndarray):
-        from .saliency import SuperpixelGraph
-
-        lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
-        region = max(4, round(_REGION_FRACTION * max(rgb.shape[:2])))
-        graph = SuperpixelGraph.of(lab, region)
-        self.labels, self.count, self.area = graph.labels, graph.count, graph.area
-        self.centre_px = graph.centre * float(max(rgb.shape[:2]))
-        self.on_border = graph.border.any(axis=1)
-        i, j = graph.edges[:, 0], graph.edges[:, 1]
-        weight = np.maximum(np.linalg.norm(graph.colour[i] - graph.colour[j], axis=1) - _STEP_FLOOR, 0.0) + 1e-3
-        # Each node's neighbours and step costs, as Python lists: Dijkstra's loop reads
-        # them one at a time, which lists serve several times faster than arrays.
-        self._edges, self._weight = (i, j), weight
-        heads, tails, steps = np.concatenate([i, j]), np.concatenate([j, i]), np.concatenate([weight, weight])
-        order = np.argsort(heads, kind="stable")
-        self._first = np.searchsorted(heads[order], np.arange(self.count + 1)).tolist()
-        self._next, self._step = tails[order].tolist(), steps[order].tolist()
-
-    def contrast(self, region: np.ndarray) -> float:
-        """Mean step cost (Lab units over the noise floor) across the boundary of
-        ``region`` ((n,) bool over the superpixels); 0 when it has none."""
-        i, j = self._edges
-        across = region[i] != region[j]
-        return float(self._weight[across].mean()) if across.any() else 0.0
-
-    def mean_of(self, mask: np.ndarray) -> np.ndarray:
-        return np.bincount(self.labels.ravel(), mask.ravel().astype(np.float64), self.count) / self.area
-
-    def distances(self, allowed: np.ndarray, sources) -> np.ndarray:
-        """(n,) geodesic distance to the nearest of ``sources`` through ``allowed`` nodes
-        (a source outside them stays at 0 and leads nowhere).
-
-        Dijkstra on a binary heap: a few thousand superpixels take 1-6 ms. (A node's
-        distance is the least sum along a path, added up from the source, so every
-        correct shortest-path routine gives the same bits; scipy's, used before, cost a
-        fresh process 0.35 s to import.)"""
-        usable = np.asarray(allowed, bool).tolist()
-        first, following, step = self._first, self._next, self._step
-        distance = [math.inf] * self.count
-        heap = []
-        for source in np.asarray(sources, int).ravel().tolist():
-            distance[source] = 0.0
-            heap.append((0.0, source))
-        heapq.heapify(heap)
-        while heap:
-            reached, node = heapq.heappop(heap)
-            if reached > distance[node] or not usable[node]:
-                continue
-            for k in range(first[node], first[node + 1]):
-                other = following[k]
-                if usable[other]:
-                    candidate = reached + step[k]
-                    if candidate < distance[other]:
-                        distance[other] = candidate
-                        heapq.heappush(heap, (candidate, other))
-        return np.array(distance)
+    return max(2.0, float(interior_distance(region)[y, x]))
 
 
 def _relative_depth(mask: np.ndarray, x: int, y: int) -> float:
     """The click's distance to the mask's boundary over the mask's deepest distance."""
-    distance = _interior_distance(mask)
+    distance = interior_distance(mask)
     return float(distance[y, x]) / max(float(distance.max()), 1.0)
-
-
-def _interior_distance(region: np.ndarray) -> np.ndarray:
-    """Distance of each pixel of ``region`` to its boundary (the image border counts)."""
-    return cv2.distanceTransform(np.pad(region.astype(np.uint8), 1), cv2.DIST_L2, 5)[1:-1, 1:-1]
 
 
 def simulated_click(reference: np.ndarray, predicted: np.ndarray | None) -> tuple[bool, Point]:
@@ -663,11 +533,11 @@ def simulated_click(reference: np.ndarray, predicted: np.ndarray | None) -> tupl
     taken. ``reference`` and ``predicted`` are ``(H, W)`` bool.
     """
     if predicted is None:
-        distance = _interior_distance(reference)
+        distance = interior_distance(reference)
         y, x = np.unravel_index(np.argmax(distance), distance.shape)
         return True, (x + 0.5, y + 0.5)
-    missed = _interior_distance(reference & ~predicted)
-    taken = _interior_distance(~reference & predicted)
+    missed = interior_distance(reference & ~predicted)
+    taken = interior_distance(~reference & predicted)
     positive = missed.max() >= taken.max()
     distance = missed if positive else taken
     y, x = np.unravel_index(np.argmax(distance), distance.shape)
