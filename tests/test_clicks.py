@@ -487,3 +487,24 @@ def test_the_same_photo_at_another_pixel_size_gives_the_same_subject(factor):
     automatic_there = extract_silhouettes(other)[0].mask >= 0.5
     both = body | head
     assert abs(_iou(automatic_there, scaled["body"] | scaled["head"]) - _iou(automatic, both)) < 0.05
+
+
+# ------------------------------------------------------------------ the hover preview's map
+
+
+def test_the_first_click_map_shows_what_a_first_click_takes():
+    """The page's hover preview: the region the map gives under a point is the first
+    click's mask there (as superpixels), and nothing where a click finds nothing."""
+    from jeanscv.subject.consensus import iou
+    from jeanscv.subject.hover import first_click_map
+
+    image, body, head, disc = figure()
+    found = first_click_map(session())
+    assert found.labels.shape == body.shape  # 320x240: the working copy is the photo
+    for click, part in ((BODY_CLICK, body | head), (DISC_CLICK, disc)):
+        x, y = int(click[0]), int(click[1])
+        shown = found.mask(found.at(x, y))
+        assert iou(shown, session().working_mask([click])) > 0.9
+        assert share(shown, part) > 0.97 and np.count_nonzero(shown & ~part) < 0.05 * part.sum()
+    assert found.at(300, 220) == -1  # the grey corner: "nothing found there"
+    assert found.mask(-1).sum() == 0
