@@ -2,12 +2,16 @@
 
     python -m bench.hover_preview                      # sample_images + ../shared/pet_photos
     python -m bench.hover_preview PHOTO [PHOTO ...] --points 12
+    python -m bench.hover_preview --browser PHOTO      # the page's update time, in Chromium
 
 For each photo: the click session, then its first-click map (the time it takes), then
 ``--points`` random points (fixed seed): the region the map shows there against the mask
 a first click there takes (``ClickSession.working_mask``, its GrabCut and refinement
 included; "nothing found" is an empty mask). Prints per photo and overall the mean IoU,
-the share of points with IoU >= 0.8 and >= 0.5, and the map's time and size on the wire.
+the share of points with IoU >= 0.8 and >= 0.5, and the map's time and size on the wire. With ``--browser``: ``jeanscv serve`` and Debian's
+Chromium (Playwright); each photo is opened on the page and the pointer moved over a
+12x12 grid, twice; prints the median and the longest update (the page's own
+``performance.now()`` around its lookup and drawing).
 """
 
 from __future__ import annotations
@@ -54,11 +58,52 @@ def measure(path: Path, points: int, rng: np.random.Generator) -> tuple[list[flo
     return scores, seconds, wire
 
 
+def browser_times(paths: list[Path]) -> None:
+    """The page's hover updates, timed by the page, over a grid of pointer positions."""
+    import threading
+
+    import uvicorn
+    from playwright.sync_api import sync_playwright
+
+    from jeanscv_cli.serve.app import Config, create_app
+
+    port = 8731
+    server = uvicorn.Server(uvicorn.Config(create_app(Config(port=port)), port=port, log_level="error"))
+    threading.Thread(target=server.run, daemon=True).start()
+    while not server.started:
+        time.sleep(0.05)
+    try:
+        with sync_playwright() as playwright:
+            chromium = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=["--no-sandbox"])
+            page = chromium.new_page(viewport={"width": 1280, "height": 860})
+            page.goto(f"http://127.0.0.1:{port}/")
+            for path in paths:
+                page.set_input_files("#file", str(path))
+                page.wait_for_function(
+                    "() => document.getElementById('frame').dataset.hover === 'ready'", timeout=120_000
+                )
+                box = page.locator("#result").bounding_box()
+                times = []
+                for _ in range(2):  # the second pass draws from the page's cache of regions
+                    for fy in np.linspace(0.05, 0.95, 12):
+                        for fx in np.linspace(0.05, 0.95, 12):
+                            page.mouse.move(box["x"] + fx * box["width"], box["y"] + fy * box["height"])
+                            times.append(float(page.evaluate("() => document.getElementById('frame').dataset.hoverMs")))
+                print(f"{path.name:40s} update median {statistics.median(times):.1f} ms, longest {max(times):.1f} ms")
+            chromium.close()
+    finally:
+        server.should_exit = True
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("photos", nargs="*", type=Path)
     parser.add_argument("--points", type=int, default=10)
+    parser.add_argument("--browser", action="store_true", help="time the page's updates in Chromium")
     args = parser.parse_args()
+    if args.browser:
+        browser_times(args.photos or DEFAULT[:4])
+        return
     rng = np.random.default_rng(32)
     every, times = [], []
     for path in args.photos or DEFAULT:

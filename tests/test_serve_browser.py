@@ -3,8 +3,10 @@ Playwright (never ``playwright install``: no browser is downloaded).
 
 Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
 With ``JEANSCV_SCREENSHOT=PATH`` the main test also saves the page in use there, and with
-``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save
-(``docs/serve.jpg`` and ``docs/serve-folder.jpg`` are made so: see ``bench/serve_screenshot.py``).
+``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save, and with
+``JEANSCV_HOVER_SCREENSHOT=PATH`` the hover test its page with the dog previewed
+(``docs/serve.jpg``, ``docs/serve-folder.jpg`` and ``docs/serve-hover.jpg`` are made so:
+see ``bench/serve_screenshot.py``).
 """
 
 from __future__ import annotations
@@ -820,3 +822,63 @@ def test_the_subject_select_goes_with_the_next_photo(server, page):
     _drop_photo(page, image, name="owner.png", wait=False)
     _wait_until(page, lambda: len(answers) == 2, 60, "no answer to the second upload")
     assert answers[-1]["summary"]["kind"] == "person"
+
+
+def _hover_region(page) -> np.ndarray:
+    """The hover preview's drawn region (its fill and bright edge), at the map's size."""
+    import io
+
+    url = page.evaluate("() => document.getElementById('hover').toDataURL('image/png')")
+    with Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))) as drawn:
+        rgba = np.asarray(drawn.convert("RGBA"))
+    return (rgba[..., 3] > 0) & (rgba[..., 2] > 200)  # cyan: its fill and bright edge, not the dark one
+
+
+def _point_at(page, x: float, y: float) -> tuple[float, float]:
+    """The screen position of the photo's pixel ``(x, y)``."""
+    box = page.locator("#result").bounding_box()
+    size = page.evaluate(
+        "() => { const s = document.getElementById('overlay').viewBox.baseVal; return [s.width, s.height]; }"
+    )
+    return box["x"] + x / size[0] * box["width"], box["y"] + y / size[1] * box["height"]
+
+
+def test_the_hover_preview_outlines_what_a_click_would_take(server, page):
+    """Issue 32's wish: as the pointer moves over the photo, the outline of what a click
+    there would take, from a map the server sends once (no request per move); gone once
+    the object has a click (the next click corrects it) and in Remove mode."""
+    import cv2
+
+    from jeanscv.subject.consensus import iou
+
+    photo = two_objects()
+    asked = []
+    page.on("request", lambda request: "/api/" in request.url and asked.append(request.url))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    _drop_photo(page, photo.image)
+    page.wait_for_function("() => document.getElementById('frame').dataset.hover === 'ready'", timeout=90_000)
+    before = len(asked)
+    width, height = page.evaluate(
+        "() => [document.getElementById('hover').width, document.getElementById('hover').height]"
+    )
+    for mask in (photo.masks[1], photo.masks[0]):  # the dog, then its owner
+        page.mouse.move(*_point_at(page, *inside_point(mask)))
+        page.wait_for_function("() => !document.getElementById('hover').hidden")
+        truth = cv2.resize(mask.astype(np.uint8), (width, height), interpolation=cv2.INTER_AREA) > 0
+        assert iou(_hover_region(page), truth) > 0.8
+        if mask is photo.masks[1] and os.environ.get("JEANSCV_HOVER_SCREENSHOT"):
+            page.screenshot(path=os.environ["JEANSCV_HOVER_SCREENSHOT"], type="jpeg", quality=88)
+    assert len(asked) == before  # looked up in the page: no request per move
+    page.keyboard.press("r")  # Remove mode: a negative click takes away, it takes nothing
+    page.mouse.move(*_point_at(page, *inside_point(photo.masks[1])))
+    assert page.locator("#hover").is_hidden()
+    page.keyboard.press("a")
+    _click_photo(page, *inside_point(photo.masks[1]))
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.mouse.move(*_point_at(page, *inside_point(photo.masks[0])))
+    assert page.locator("#hover").is_hidden()  # the dog's object has a click
+    page.keyboard.press("n")  # a new object: its first click would take the owner
+    page.mouse.move(*_point_at(page, *inside_point(photo.masks[0])), steps=2)
+    page.wait_for_function("() => !document.getElementById('hover').hidden")
+    assert page.problems == []

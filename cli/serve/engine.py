@@ -177,6 +177,7 @@ class Photo:
         total += sum(masks.values())
         if self._session is not None:
             total += self.pixels.nbytes // 8  # working copies and cached masks
+        total += len(self.hover or b"")
         if self.shared is not None:
             total += self.shared.nbytes
         return total
@@ -561,9 +562,13 @@ def hover_map(photo: Photo) -> bytes:
     from jeanscv.subject.hover import first_click_map
 
     with photo.lock:
-        if photo.hover is None:
-            session = photo.session()
-            photo.hover = encode_hover_map(first_click_map(session), photo.size)
+        if photo.hover is not None:
+            return photo.hover
+        session = photo.session()
+    # Outside the lock: the map only reads the session (a click may segment meanwhile).
+    made = encode_hover_map(first_click_map(session), photo.size)
+    with photo.lock:
+        photo.hover = photo.hover or made
         return photo.hover
 
 

@@ -4,6 +4,7 @@
 import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
 import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { clearHover, hoverMove } from "./hover.js";
 import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -60,6 +61,8 @@ function wire() {
   const frame = $("frame");
   frame.addEventListener("pointerdown", pointerDown);
   frame.addEventListener("pointermove", pointerMove);
+  frame.addEventListener("pointermove", hoverMove);
+  frame.addEventListener("pointerleave", clearHover);
   frame.addEventListener("pointerup", pointerUp);
   frame.addEventListener("pointercancel", pointerUp);
   frame.addEventListener("dragstart", (e) => e.preventDefault()); // a drag draws a box, it does not carry the picture off
@@ -91,6 +94,7 @@ function wire() {
   $("folder-filter").addEventListener("change", applyFilter);
   $("marks").addEventListener("change", () => {
     state.marks = $("marks").checked;
+    clearHover();
     drawOverlay();
   });
   window.addEventListener("resize", () => drawOverlay());

@@ -1,6 +1,7 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
+import { clearHover, forgetHover, loadHover } from "./hover.js";
 import { post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -20,6 +21,7 @@ function leavePhoto() {
   state.photo = null; // no click, render or download for the photo left
   state.result = null;
   drawOverlay();
+  forgetHover();
   return state.generation;
 }
 
@@ -103,6 +105,7 @@ function start(answer, item) {
   if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
   updateControls();
+  if (answer.kind === "photo") loadHover(answer.photo, state.generation);
 }
 
 // ------------------------------------------------------------------ results
@@ -333,6 +336,7 @@ function clearClicks() {
 }
 
 function changed() {
+  clearHover(); // the next pointer move shows it again if a click would still be a first one
   drawOverlay();
   updateControls();
   rerender();
@@ -353,6 +357,7 @@ function newObject() {
 
 function setMode(negative) {
   state.negative = negative;
+  clearHover();
   $("mode-add").setAttribute("aria-pressed", String(!negative));
   $("mode-remove").setAttribute("aria-pressed", String(negative));
 }
