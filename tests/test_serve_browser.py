@@ -882,3 +882,28 @@ def test_the_hover_preview_outlines_what_a_click_would_take(server, page):
     page.mouse.move(*_point_at(page, *inside_point(photo.masks[0])), steps=2)
     page.wait_for_function("() => !document.getElementById('hover').hidden")
     assert page.problems == []
+
+
+def test_the_first_run_says_the_kernels_are_being_compiled(browser, monkeypatch):
+    """Issue 32: on the first run after installing, the page says once that the fit
+    kernels are being compiled and about how long, and the notice goes when they are."""
+    from jeanscv_cli.serve import engine
+
+    done = threading.Event()
+    monkeypatch.setattr(engine, "kernels_to_compile", lambda: True)
+    monkeypatch.setattr(engine, "kernels_warming", lambda: not done.is_set())
+    with _serving({}) as (url, _):
+        context = browser.new_context(viewport={"width": 1280, "height": 860})
+        try:
+            page = context.new_page()
+            page.goto(url + "/")
+            notice = page.locator("#first-run")
+            notice.wait_for(state="visible")
+            assert "compiled, once (about 25 s)" in notice.text_content()
+            done.set()
+            notice.wait_for(state="hidden", timeout=10_000)
+            page.reload()
+            page.wait_for_selector("#garment option", state="attached")
+            assert notice.is_hidden()  # said once: not on the next visit
+        finally:
+            context.close()

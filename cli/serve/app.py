@@ -106,6 +106,7 @@ class State:
         self.folder_lock = threading.Lock()
         self.backend = config.backend
         self.folder = config.folder.resolve() if config.folder is not None else None
+        self.compiling = False  # the fit kernels were not compiled when the server started
         # Folder items (by name) whose subject may be the wrong thing, once known: their
         # output was made, or they were opened, here (True/False; clicks make it False).
         self.unsure: dict[str, bool] = {}
@@ -214,6 +215,8 @@ class _Api:
         return Response(body, media_type=media, headers={"Cache-Control": "no-cache"})
 
     async def options(self, request: Request) -> Response:
+        if self.state.compiling and not engine.kernels_warming():
+            self.state.compiling = False  # compiled: said once, never again
         return JSONResponse(
             {
                 "garments": engine.garments(),
@@ -222,6 +225,9 @@ class _Api:
                 "max_upload": self.config.max_upload,
                 "folder": self.config.folder is not None,
                 "folder_name": self.config.folder.name if self.config.folder is not None else "",
+                # A fresh install's first run: the page says the kernels are being compiled.
+                "compiling": self.state.compiling,
+                "compile_seconds": engine.COMPILE_SECONDS,
             }
         )
 
@@ -481,6 +487,9 @@ class _Api:
     async def lifespan(self, app):
         self.state.open()
         if self.config.warm:
+            # A fresh install compiles the kernels now, in the background (about 25 s):
+            # the page says so while it lasts (/api/options "compiling").
+            self.state.compiling = engine.kernels_to_compile()
             engine.warm_up()
         try:
             yield

@@ -125,6 +125,25 @@ def default_backend() -> str:
     return resolve_backend(None, "cpu")
 
 
+#: About how long a fresh install's first run compiles the fit kernels (two free cores;
+#: the command line's first run says the same).
+COMPILE_SECONDS = 25
+
+
+def kernels_to_compile() -> bool:
+    """Whether the fit kernels are not compiled for this installation yet (its first run)."""
+    from jeanscv.fitting._fast import kernels_cached
+
+    return default_backend() == "fast" and not kernels_cached()
+
+
+def kernels_warming() -> bool:
+    """Whether :func:`warm_up`'s background thread still loads or compiles the kernels."""
+    from jeanscv.fitting import _fast
+
+    return _fast.warming()
+
+
 def warm_up() -> None:
     """Compile or load the fit kernels now, and have segmentation's colour tables built,
     so the first photo does not wait for them."""

@@ -25,11 +25,31 @@ async function loadOptions() {
   fill($("garment"), options.garments, "jeans");
   fill($("posture"), options.postures, "upright");
   state.maxUpload = options.max_upload;
+  if (options.compiling) watchCompiling(options.compile_seconds);
   if (options.folder) {
     $("gallery").hidden = false;
     $("folder-name").textContent = options.folder_name;
     loadGallery();
   }
+}
+
+// A fresh install's first run: the fit kernels compile in the background (about
+// half a minute, once). Said while it lasts; a photo dropped meanwhile waits for them.
+function watchCompiling(seconds) {
+  const notice = $("first-run");
+  notice.textContent = `First run after installing: the fit kernels are being compiled, once (about ${seconds} s). `
+    + "A photo dropped now is ready when they are; later runs start at once.";
+  notice.hidden = false;
+  const poll = setInterval(async () => {
+    try {
+      const now = await answerOf(await fetch("/api/options"));
+      if (now.compiling) return;
+    } catch (error) {
+      return; // asked again in a moment
+    }
+    clearInterval(poll);
+    notice.hidden = true;
+  }, 2000);
 }
 
 // ------------------------------------------------------------------ wiring
