@@ -907,3 +907,40 @@ def test_the_first_run_says_the_kernels_are_being_compiled(browser, monkeypatch)
             assert notice.is_hidden()  # said once: not on the next visit
         finally:
             context.close()
+
+
+def test_a_boxs_handles_adjust_it_and_segment_again(server, page):
+    """Issue 32's wish: a drawn box has handles to adjust it; letting one go segments
+    again with the new box, one step to undo."""
+    bodies = []
+    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    photo = two_objects()
+    _drop_photo(page, photo.image)
+    rows, cols = np.nonzero(photo.masks[1])  # the dog
+    middle = (cols.min() + cols.max()) / 2
+    x0, y0, x1, y1 = middle, rows.min() - 8, cols.max() + 8, rows.max() + 8  # its right half
+    page.mouse.move(*_point_at(page, x0, y0))
+    page.mouse.down()
+    page.mouse.move(*_point_at(page, x1, y1), steps=5)
+    page.mouse.up()
+    _wait_until(page, lambda: bodies, 30, "no render after the box")
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    assert page.locator("#overlay rect.handle").count() == 8
+    # The left edge's handle, dragged to the dog's left: the box holds the whole dog.
+    page.mouse.move(*_point_at(page, x0, (y0 + y1) / 2))
+    assert page.evaluate("() => document.getElementById('frame').style.cursor") == "ew-resize"
+    page.mouse.down()
+    page.mouse.move(*_point_at(page, cols.min() - 8, (y0 + y1) / 2), steps=5)
+    assert page.locator("#overlay rect.box.draft").count() == 1  # drawn as it is dragged
+    page.mouse.up()
+    _wait_until(page, lambda: len(bodies) == 2, 30, "no render after the handle was let go")
+    sent = bodies[-1]["objects"]
+    assert len(sent) == 1 and sent[0]["positive"] == [] and sent[0]["negative"] == []  # no click added
+    assert np.allclose(sent[0]["box"], [cols.min() - 8, y0, x1, y1], atol=1.5), sent
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.keyboard.press("Control+z")  # the box as it was drawn
+    _wait_until(page, lambda: len(bodies) == 3, 30, "no render after Undo")
+    assert np.allclose(bodies[-1]["objects"][0]["box"], [x0, y0, x1, y1], atol=1.5)
+    assert page.problems == []

@@ -47,7 +47,17 @@ _MEDIA = {
     ".gif": "image/gif",
 }
 #: The page's ES modules: app.js, the entry, imports the others.
-_SCRIPTS = ("app.js", "state.js", "server.js", "drawing.js", "captions.js", "editor.js", "folder.js", "hover.js")
+_SCRIPTS = (
+    "app.js",
+    "state.js",
+    "server.js",
+    "drawing.js",
+    "captions.js",
+    "editor.js",
+    "folder.js",
+    "hover.js",
+    "boxes.js",
+)
 _STATIC = (
     {"/": ("index.html", "text/html; charset=utf-8")}
     | {f"/static/{name}": (name, "text/javascript; charset=utf-8") for name in _SCRIPTS}

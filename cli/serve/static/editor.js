@@ -1,5 +1,6 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
+import { adjusted, handleAt, showHandleCursor } from "./boxes.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
 import { clearHover, forgetHover, loadHover } from "./hover.js";
 import { post } from "./server.js";
@@ -206,21 +207,30 @@ function boxOf(a, b) {
 function pointerDown(event) {
   state.dragged = false;
   if (state.kind !== "photo" || !state.result || event.button !== 0 || event.pointerType === "touch") return;
-  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false };
+  // On a handle of the current object's box: that box's sides move (no click, no new box).
+  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false, handle: handleAt(event) };
 }
 
 function pointerMove(event) {
-  if (!drag) return;
+  if (!drag) {
+    showHandleCursor(event);
+    return;
+  }
   if (!drag.moved && Math.hypot(event.clientX - drag.x, event.clientY - drag.y) < 6) return;
   if (!drag.moved) $("frame").setPointerCapture(event.pointerId);
   drag.moved = true;
-  drawOverlay(null, boxOf(drag.start, photoPoint(event)));
+  if (drag.handle) drawOverlay(null, adjusted(state.objects[state.current].box, drag.handle, photoPoint(event)), true);
+  else drawOverlay(null, boxOf(drag.start, photoPoint(event)));
 }
 
 function pointerUp(event) {
   if (!drag) return;
   const done = drag;
   drag = null;
+  if (done.handle) {
+    adjustBox(done, event);
+    return;
+  }
   if (!done.moved) return; // a click: the click event adds it
   if (event.type === "pointercancel") {
     drawOverlay();
@@ -235,6 +245,22 @@ function pointerUp(event) {
   if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
   const object = state.objects[state.current];
   state.history.push({ object: state.current, box, before: object.box || null });
+  object.box = box;
+  state.future = [];
+  state.clickPending = true; // taken back if nothing is found in it
+  changed();
+}
+
+// A handle let go: the box takes its new sides (one step to undo) and is segmented again.
+function adjustBox(done, event) {
+  state.dragged = true; // a press on a handle is no click, moved or not
+  const object = state.objects[state.current];
+  const box = done.moved && event.type !== "pointercancel" ? adjusted(object.box, done.handle, photoPoint(event)) : null;
+  if (!box || box[2] - box[0] < 2 || box[3] - box[1] < 2) {
+    drawOverlay();
+    return;
+  }
+  state.history.push({ object: state.current, box, before: object.box });
   object.box = box;
   state.future = [];
   state.clickPending = true; // taken back if nothing is found in it
