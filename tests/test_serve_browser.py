@@ -944,3 +944,84 @@ def test_a_boxs_handles_adjust_it_and_segment_again(server, page):
     _wait_until(page, lambda: len(bodies) == 3, 30, "no render after Undo")
     assert np.allclose(bodies[-1]["objects"][0]["box"], [x0, y0, x1, y1], atol=1.5)
     assert page.problems == []
+
+
+def _pinch(page, centre: tuple[float, float], start: float, end: float) -> None:
+    """Two fingers on the screen at ``centre``, ``start`` apart, spread to ``end`` apart
+    (Chromium's own touch events, through the DevTools protocol)."""
+    session = page.context.new_cdp_session(page)
+    x, y = centre
+
+    def fingers(gap: float) -> list:
+        return [{"x": x - gap / 2, "y": y, "id": 0}, {"x": x + gap / 2, "y": y, "id": 1}]
+
+    session.send("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": fingers(start)})
+    for step in range(1, 7):
+        session.send(
+            "Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": fingers(start + (end - start) * step / 6)}
+        )
+    session.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+    session.detach()
+
+
+def test_a_phone_by_touch_alone(server, browser, tmp_path):
+    """Issue 32's phone wishes and Checks' touch-only run of the main flow: tap to choose
+    a photo, the photo the screen's full width, a tap that moves the jeans, the sticky
+    Add/Remove/Undo bar and the mode shown on the photo, zoom by buttons and by a pinch
+    (no click made by it), the meme downloaded by a tap."""
+    path = tmp_path / "pets.png"
+    photo = two_objects()
+    Image.fromarray(photo.image).save(path)
+    context = browser.new_context(
+        viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True, accept_downloads=True
+    )
+    try:
+        page = context.new_page()
+        problems = []
+        page.on("pageerror", lambda error: problems.append(str(error)))
+        choosers = []
+        page.on("filechooser", lambda chooser: choosers.append(chooser))
+        page.goto(server + "/")
+        page.wait_for_selector("#garment option", state="attached")
+        page.tap("#drop")
+        _wait_until(page, lambda: choosers, 10, "a tap on the drop zone opened no file chooser")
+        choosers[0].set_files(str(path))
+        _wait_for_result(page, "pets.png")
+        shown = page.locator("#result").bounding_box()
+        assert shown["x"] == 0 and shown["width"] == 390  # the full width
+        assert page.is_visible("#phone-bar") and page.inner_text("#mode-badge") == "+ Add"
+        bar = page.locator("#phone-bar").bounding_box()
+        assert abs(bar["y"] + bar["height"] - 844) < 2  # at the bottom of the screen
+        page.touchscreen.tap(*_point_at(page, *inside_point(photo.masks[1])))  # the dog
+        page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+        assert page.locator("#overlay circle.click.pos").count() == 1
+        page.tap("#bar-remove")
+        assert (
+            page.inner_text("#mode-badge") == "\u2212 Remove"
+            and page.get_attribute("#mode-remove", "aria-pressed") == "true"
+        )
+        page.touchscreen.tap(*_point_at(page, 400, 470))  # the grass below them: taken away (it was not in)
+        page.wait_for_function("() => document.querySelectorAll('#overlay circle.click.neg').length === 1")
+        page.tap("#bar-undo")
+        assert page.locator("#overlay circle.click.neg").count() == 0
+        page.tap("#bar-add")
+        assert page.inner_text("#mode-badge") == "+ Add"
+
+        page.tap("#zoom-in")
+        assert page.locator("#result").bounding_box()["width"] > 500
+        page.tap("#zoom-out")
+        assert page.locator("#result").bounding_box()["width"] == 390
+        clicks = page.locator("#overlay circle.click").count()
+        frame = page.locator("#zoom").bounding_box()
+        _pinch(page, (frame["x"] + frame["width"] / 2, frame["y"] + frame["height"] / 2), 60, 180)
+        page.wait_for_function("() => Number(document.getElementById('zoom').dataset.zoom) > 2")
+        assert page.locator("#overlay circle.click").count() == clicks  # a pinch is no click
+        ring = page.locator("#overlay circle.click").bounding_box()["width"] / 2
+        assert 5 <= ring <= 8  # markers stay their size on the screen
+
+        with page.expect_download(timeout=60_000) as download:
+            page.tap("#dl-meme")
+        assert download.value.suggested_filename == "pets.meme.png"
+        assert problems == []
+    finally:
+        context.close()

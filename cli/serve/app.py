@@ -57,6 +57,7 @@ _SCRIPTS = (
     "folder.js",
     "hover.js",
     "boxes.js",
+    "zoom.js",
 )
 _STATIC = (
     {"/": ("index.html", "text/html; charset=utf-8")}

@@ -5,6 +5,7 @@ import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
 import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
 import { clearHover, hoverMove } from "./hover.js";
+import { wireZoom } from "./zoom.js";
 import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -91,6 +92,10 @@ function wire() {
   $("mode-add").addEventListener("click", () => setMode(false));
   $("mode-remove").addEventListener("click", () => setMode(true));
   $("undo").addEventListener("click", undo);
+  $("bar-add").addEventListener("click", () => setMode(false));
+  $("bar-remove").addEventListener("click", () => setMode(true));
+  $("bar-undo").addEventListener("click", undo);
+  wireZoom();
   $("reset").addEventListener("click", reset);
   $("new-object").addEventListener("click", newObject);
   $("watch").addEventListener("click", watchFit);

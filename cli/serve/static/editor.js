@@ -3,6 +3,7 @@ import { updateMemeLink } from "./captions.js";
 import { adjusted, handleAt, showHandleCursor } from "./boxes.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
 import { clearHover, forgetHover, loadHover } from "./hover.js";
+import { resetZoom } from "./zoom.js";
 import { post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -23,6 +24,7 @@ function leavePhoto() {
   state.result = null;
   drawOverlay();
   forgetHover();
+  resetZoom();
   return state.generation;
 }
 
@@ -386,12 +388,20 @@ function setMode(negative) {
   clearHover();
   $("mode-add").setAttribute("aria-pressed", String(!negative));
   $("mode-remove").setAttribute("aria-pressed", String(negative));
+  $("bar-add").setAttribute("aria-pressed", String(!negative));
+  $("bar-remove").setAttribute("aria-pressed", String(negative));
+  const badge = $("mode-badge");
+  badge.textContent = negative ? "\u2212 Remove" : "+ Add";
+  badge.classList.toggle("remove", negative);
 }
 
 function updateControls() {
   const photo = state.kind === "photo";
   for (const id of ["mode-add", "mode-remove", "new-object", "undo", "redo", "reset"]) $(id).disabled = !photo;
   $("undo").disabled = !photo || state.history.length === 0;
+  $("bar-undo").disabled = $("undo").disabled;
+  $("bar-add").disabled = $("bar-remove").disabled = !photo;
+  $("mode-badge").hidden = !photo;
   $("redo").disabled = !photo || state.future.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
   $("new-object").disabled = !photo || clickedObjects().length === 0;
