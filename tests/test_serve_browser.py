@@ -1025,3 +1025,53 @@ def test_a_phone_by_touch_alone(server, browser, tmp_path):
         assert problems == []
     finally:
         context.close()
+
+
+def test_the_main_flow_by_keyboard_alone(server, page, tmp_path):
+    """Issue 32's Checks: a keyboard-only run of the main flow. Tab to the drop zone,
+    Enter opens the chooser; Tab to the photo, whose cross the arrows move (the hover
+    preview following it) and Enter clicks there; a caption typed; the meme downloaded
+    from its button by Enter."""
+    path = tmp_path / "pets.png"
+    photo = two_objects()
+    Image.fromarray(photo.image).save(path)
+    bodies = []
+    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
+    choosers = []
+    page.on("filechooser", lambda chooser: choosers.append(chooser))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+
+    def tab_to(element: str, most: int = 40) -> None:
+        for _ in range(most):
+            page.keyboard.press("Tab")
+            if page.evaluate("() => document.activeElement.id") == element:
+                return
+        raise AssertionError(f"Tab never reached #{element}")
+
+    tab_to("drop")
+    page.keyboard.press("Enter")
+    _wait_until(page, lambda: choosers, 10, "Enter on the drop zone opened no file chooser")
+    choosers[0].set_files(str(path))
+    _wait_for_result(page, "pets.png")
+    page.wait_for_function("() => document.getElementById('frame').dataset.hover === 'ready'", timeout=90_000)
+    page.evaluate("() => document.activeElement.blur()")
+    tab_to("frame")
+    assert page.locator("#overlay path.cursor").count() == 1  # the cross, at the photo's middle
+    target = inside_point(photo.masks[1])  # the dog; the cross moves 16 px (2% of 800) a press
+    for key, steps in (("ArrowRight", round((target[0] - 400) / 16)), ("ArrowDown", round((target[1] - 250) / 16))):
+        for _ in range(abs(steps)):
+            page.keyboard.press(key)
+    assert page.locator("#hover").is_visible()  # what Enter would take, shown
+    page.keyboard.press("Enter")
+    _wait_until(page, lambda: bodies, 30, "Enter on the photo made no click")
+    point = bodies[-1]["objects"][0]["positive"][0]
+    assert photo.masks[1][int(point[1]), int(point[0])]  # a click on the dog
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    tab_to("top")
+    page.keyboard.type("how would a dog")
+    tab_to("dl-meme")
+    with page.expect_download(timeout=60_000) as download:
+        page.keyboard.press("Enter")
+    assert download.value.suggested_filename == "pets.meme.png"
+    assert page.problems == []

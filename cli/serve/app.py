@@ -58,6 +58,7 @@ _SCRIPTS = (
     "hover.js",
     "boxes.js",
     "zoom.js",
+    "cursor.js",
 )
 _STATIC = (
     {"/": ("index.html", "text/html; charset=utf-8")}

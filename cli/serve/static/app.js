@@ -5,6 +5,7 @@ import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
 import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
 import { clearHover, hoverMove } from "./hover.js";
+import { wireCursor } from "./cursor.js";
 import { wireZoom } from "./zoom.js";
 import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
@@ -96,6 +97,7 @@ function wire() {
   $("bar-remove").addEventListener("click", () => setMode(true));
   $("bar-undo").addEventListener("click", undo);
   wireZoom();
+  wireCursor();
   $("reset").addEventListener("click", reset);
   $("new-object").addEventListener("click", newObject);
   $("watch").addEventListener("click", watchFit);

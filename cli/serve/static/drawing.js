@@ -63,6 +63,14 @@ function drawOverlay(animatedJeans = null, draftBox = null, adjusting = false) {
       }
     }
   });
+  if (state.cursor) { // the keyboard's cross (cursor.js)
+    const [x, y] = state.cursor;
+    const size = 12 * photoPixelsPerScreenPixel;
+    const cross = document.createElementNS(SVG_NS, "path");
+    cross.setAttribute("d", `M${x - size},${y}H${x + size}M${x},${y - size}V${y + size}`);
+    cross.setAttribute("class", "cursor");
+    svg.appendChild(cross);
+  }
 }
 
 // ------------------------------------------------------------------ the fit, animated

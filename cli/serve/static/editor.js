@@ -22,6 +22,7 @@ function leavePhoto() {
   stopAnimation();
   state.photo = null; // no click, render or download for the photo left
   state.result = null;
+  state.cursor = null;
   drawOverlay();
   forgetHover();
   resetZoom();
@@ -277,10 +278,16 @@ function addClick(event) {
     state.dragged = false;
     return;
   }
+  addPoint(photoPoint(event), negative);
+}
+
+// A click at ``point`` (photo pixels) for the current object: the pointer's, or the keyboard cursor's.
+function addPoint(point, negative) {
+  if (state.kind !== "photo" || !state.result) return;
   if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
   const object = state.objects[state.current];
   // A negative click first means "the automatic subject, minus this" (the server does it).
-  (negative ? object.negative : object.positive).push(photoPoint(event));
+  (negative ? object.negative : object.positive).push(point);
   state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
   state.future = [];
   state.clickPending = true;
@@ -425,4 +432,4 @@ function updateControls() {
   });
 }
 
-export { addClick, clickedObjects, describe, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };
+export { addClick, addPoint, clickedObjects, describe, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };

@@ -78,11 +78,21 @@ function hoverMove(event) {
   }
   const began = performance.now();
   const rect = $("result").getBoundingClientRect();
-  const x = Math.min(map.width - 1, Math.max(0, Math.floor(((event.clientX - rect.left) / rect.width) * map.width)));
-  const y = Math.min(map.height - 1, Math.max(0, Math.floor(((event.clientY - rect.top) / rect.height) * map.height)));
+  hoverAt((event.clientX - rect.left) / rect.width, (event.clientY - rect.top) / rect.height);
+  $("frame").dataset.hoverMs = (performance.now() - began).toFixed(1); // for measuring (docs/serve.md)
+}
+
+// The preview at a point given as shares of the photo's width and height (the pointer's,
+// or the keyboard's cursor).
+function hoverAt(fx, fy) {
+  if (!previewing()) {
+    clearHover();
+    return;
+  }
+  const x = Math.min(map.width - 1, Math.max(0, Math.floor(fx * map.width)));
+  const y = Math.min(map.height - 1, Math.max(0, Math.floor(fy * map.height)));
   const region = map.choice[map.labels[y * map.width + x]];
   if (region !== shown) draw(region);
-  $("frame").dataset.hoverMs = (performance.now() - began).toFixed(1); // for measuring (docs/serve.md)
 }
 
 function clearHover() {
@@ -129,4 +139,4 @@ function picture(region) {
   return image;
 }
 
-export { clearHover, forgetHover, hoverMove, loadHover };
+export { clearHover, forgetHover, hoverAt, hoverMove, loadHover };
