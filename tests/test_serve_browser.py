@@ -4,9 +4,10 @@ Playwright (never ``playwright install``: no browser is downloaded).
 Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
 With ``JEANSCV_SCREENSHOT=PATH`` the main test also saves the page in use there, and with
 ``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save, and with
-``JEANSCV_HOVER_SCREENSHOT=PATH`` the hover test its page with the dog previewed
-(``docs/serve.jpg``, ``docs/serve-folder.jpg`` and ``docs/serve-hover.jpg`` are made so:
-see ``bench/serve_screenshot.py``).
+``JEANSCV_HOVER_SCREENSHOT=PATH`` the hover test its page with the dog previewed, and
+with ``JEANSCV_PHONE_SCREENSHOT=PATH`` the phone test its page in Remove mode
+(``docs/serve.jpg``, ``docs/serve-folder.jpg``, ``docs/serve-hover.jpg`` and
+``docs/serve-phone.jpg`` are made so: see ``bench/serve_screenshot.py``).
 """
 
 from __future__ import annotations
@@ -1000,10 +1001,13 @@ def test_a_phone_by_touch_alone(server, browser, tmp_path):
             page.inner_text("#mode-badge") == "\u2212 Remove"
             and page.get_attribute("#mode-remove", "aria-pressed") == "true"
         )
+        if os.environ.get("JEANSCV_PHONE_SCREENSHOT"):
+            page.screenshot(path=os.environ["JEANSCV_PHONE_SCREENSHOT"], type="jpeg", quality=85)
         page.touchscreen.tap(*_point_at(page, 400, 470))  # the grass below them: taken away (it was not in)
         page.wait_for_function("() => document.querySelectorAll('#overlay circle.click.neg').length === 1")
         page.tap("#bar-undo")
         assert page.locator("#overlay circle.click.neg").count() == 0
+        page.wait_for_function("() => !document.getElementById('status').classList.contains('busy')")
         page.tap("#bar-add")
         assert page.inner_text("#mode-badge") == "+ Add"
 

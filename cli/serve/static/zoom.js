@@ -15,7 +15,8 @@ function setZoom(wanted, x = null, y = null) {
   const box = $("zoom");
   const image = $("result");
   const next = Math.min(MOST, Math.max(1, wanted));
-  if (Math.abs(next - level) < 0.01 || !image.naturalWidth) return;
+  // (The layout's width, not the picture's: a new result's picture may be loading.)
+  if (Math.abs(next - level) < 0.01 || !image.clientWidth) return;
   const outer = box.getBoundingClientRect();
   const px = x ?? outer.left + outer.width / 2;
   const py = y ?? outer.top + outer.height / 2;
