@@ -179,6 +179,7 @@ class Photo:
     _session: object | None = None
     hover: bytes | None = None  # the hover preview's map (hover_map), made once
     lock: threading.Lock = field(default_factory=threading.Lock)
+    hover_lock: threading.Lock = field(default_factory=threading.Lock)  # one hover map made at a time
     fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
 
     @property
@@ -580,14 +581,14 @@ def hover_map(photo: Photo) -> bytes:
     (:func:`encode_hover_map`), made once per photo from its click session."""
     from jeanscv.subject.hover import first_click_map
 
-    with photo.lock:
-        if photo.hover is not None:
-            return photo.hover
-        session = photo.session()
-    # Outside the lock: the map only reads the session (a click may segment meanwhile).
-    made = encode_hover_map(first_click_map(session), photo.size)
-    with photo.lock:
-        photo.hover = photo.hover or made
+    # Made once: a second caller (the page's request while the background job makes it)
+    # waits for the first; clicks do not (the map only reads the session: photo.lock is
+    # held just to get it).
+    with photo.hover_lock:
+        if photo.hover is None:
+            with photo.lock:
+                session = photo.session()
+            photo.hover = encode_hover_map(first_click_map(session), photo.size)
         return photo.hover
 
 
