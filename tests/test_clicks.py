@@ -505,3 +505,24 @@ def test_the_geodesic_grabcut_takes_the_clicked_shape_exactly():
     red[60:180, 80:160] = True
     np.testing.assert_array_equal(geodesic_grabcut(image, [(120, 120)]), shape)
     np.testing.assert_array_equal(geodesic_grabcut(image, [(120, 120)], [(200, 120)]), red)
+
+
+# ------------------------------------------------------------------ the hover preview's map
+
+
+def test_the_first_click_map_shows_what_a_first_click_takes():
+    """The page's hover preview: the region the map gives under a point is the first
+    click's mask there (as superpixels), and nothing where a click finds nothing."""
+    from jeanscv.subject.consensus import iou
+    from jeanscv.subject.hover import first_click_map
+
+    image, body, head, disc = figure()
+    found = first_click_map(session())
+    assert found.labels.shape == body.shape  # 320x240: the working copy is the photo
+    for click, part in ((BODY_CLICK, body | head), (DISC_CLICK, disc)):
+        x, y = int(click[0]), int(click[1])
+        shown = found.mask(found.at(x, y))
+        assert iou(shown, session().working_mask([click])) > 0.9
+        assert share(shown, part) > 0.97 and np.count_nonzero(shown & ~part) < 0.05 * part.sum()
+    assert found.at(300, 220) == -1  # the grey corner: "nothing found there"
+    assert found.mask(-1).sum() == 0

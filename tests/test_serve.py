@@ -9,6 +9,7 @@ import threading
 from functools import cache
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from conftest import write_silhouette_png
@@ -202,6 +203,7 @@ def test_svg_silhouette_and_png_drawing(client):
     # A drawing has nothing to click.
     refused = client.post(f"/api/photos/{data['photo']}/render", json={"objects": [{"positive": [[250, 100]]}]})
     assert refused.status_code == 422 and "nothing to click" in refused.json()["error"]
+    assert client.get(f"/api/photos/{data['photo']}/hover").status_code == 404  # no hover preview either
 
 
 def test_silhouette_png(client, tmp_path):
@@ -287,6 +289,34 @@ def test_unknown_ids_and_kinds(client):
     assert client.get(f"/api/results/{first['result']}/passwd").status_code == 404
     assert client.get("/static/../cli/serve/app.py").status_code == 404
     assert client.get("/api/folder").status_code == 404  # not in folder mode
+    assert client.get("/api/photos/nope/hover").status_code == 404
+
+
+def test_the_hover_map_is_the_first_clicks_regions(client):
+    """The page's hover preview map: superpixel labels of the working copy (480x300),
+    the region a first click in each superpixel takes, and the regions; at the dog's
+    middle, the dog."""
+    import base64
+    import zlib
+
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    answer = client.get(f"/api/photos/{first['photo']}/hover")
+    assert answer.status_code == 200 and answer.headers["content-type"] == "application/json"
+    data = answer.json()
+    assert (data["width"], data["height"], data["size"]) == (480, 300, [800, 500])
+
+    def unpack(text: str, dtype: str) -> np.ndarray:
+        return np.frombuffer(zlib.decompress(base64.b64decode(text)), dtype)
+
+    labels = unpack(data["labels"], "<u2").reshape(300, 480)
+    choice = unpack(data["choice"], "<i2")
+    regions = np.unpackbits(unpack(data["regions"], "u1").reshape(-1, (data["count"] + 7) // 8), axis=1)
+    assert labels.max() + 1 == data["count"] == len(choice)
+    x, y = inside_point(scene().masks[1])
+    region = regions[choice[labels[int(y * 0.6), int(x * 0.6)]]][: data["count"]].astype(bool)
+    shown = region[labels]
+    dog = cv2.resize(scene().masks[1].astype(np.uint8), (480, 300), interpolation=cv2.INTER_AREA) > 0
+    assert (shown & dog).sum() / (shown | dog).sum() > 0.8
 
 
 def test_full_pool_answers_503(make_client):

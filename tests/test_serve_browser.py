@@ -3,8 +3,11 @@ Playwright (never ``playwright install``: no browser is downloaded).
 
 Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
 With ``JEANSCV_SCREENSHOT=PATH`` the main test also saves the page in use there, and with
-``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save
-(``docs/serve.jpg`` and ``docs/serve-folder.jpg`` are made so: see ``bench/serve_screenshot.py``).
+``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save, and with
+``JEANSCV_HOVER_SCREENSHOT=PATH`` the hover test its page with the dog previewed, and
+with ``JEANSCV_PHONE_SCREENSHOT=PATH`` the phone test its page in Remove mode
+(``docs/serve.jpg``, ``docs/serve-folder.jpg``, ``docs/serve-hover.jpg`` and
+``docs/serve-phone.jpg`` are made so: see ``bench/serve_screenshot.py``).
 """
 
 from __future__ import annotations
@@ -820,3 +823,259 @@ def test_the_subject_select_goes_with_the_next_photo(server, page):
     _drop_photo(page, image, name="owner.png", wait=False)
     _wait_until(page, lambda: len(answers) == 2, 60, "no answer to the second upload")
     assert answers[-1]["summary"]["kind"] == "person"
+
+
+def _hover_region(page) -> np.ndarray:
+    """The hover preview's drawn region (its fill and bright edge), at the map's size."""
+    import io
+
+    url = page.evaluate("() => document.getElementById('hover').toDataURL('image/png')")
+    with Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))) as drawn:
+        rgba = np.asarray(drawn.convert("RGBA"))
+    return (rgba[..., 3] > 0) & (rgba[..., 2] > 200)  # cyan: its fill and bright edge, not the dark one
+
+
+def _point_at(page, x: float, y: float) -> tuple[float, float]:
+    """The screen position of the photo's pixel ``(x, y)``."""
+    box = page.locator("#result").bounding_box()
+    size = page.evaluate(
+        "() => { const s = document.getElementById('overlay').viewBox.baseVal; return [s.width, s.height]; }"
+    )
+    return box["x"] + x / size[0] * box["width"], box["y"] + y / size[1] * box["height"]
+
+
+def test_the_hover_preview_outlines_what_a_click_would_take(server, page):
+    """Issue 32's wish: as the pointer moves over the photo, the outline of what a click
+    there would take, from a map the server sends once (no request per move); gone once
+    the object has a click (the next click corrects it) and in Remove mode."""
+    import cv2
+
+    from jeanscv.subject.consensus import iou
+
+    photo = two_objects()
+    asked = []
+    page.on("request", lambda request: "/api/" in request.url and asked.append(request.url))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    _drop_photo(page, photo.image)
+    page.wait_for_function("() => document.getElementById('frame').dataset.hover === 'ready'", timeout=90_000)
+    before = len(asked)
+    width, height = page.evaluate(
+        "() => [document.getElementById('hover').width, document.getElementById('hover').height]"
+    )
+    for mask in (photo.masks[1], photo.masks[0]):  # the dog, then its owner
+        page.mouse.move(*_point_at(page, *inside_point(mask)))
+        page.wait_for_function("() => !document.getElementById('hover').hidden")
+        truth = cv2.resize(mask.astype(np.uint8), (width, height), interpolation=cv2.INTER_AREA) > 0
+        assert iou(_hover_region(page), truth) > 0.8
+        if mask is photo.masks[1] and os.environ.get("JEANSCV_HOVER_SCREENSHOT"):
+            page.screenshot(path=os.environ["JEANSCV_HOVER_SCREENSHOT"], type="jpeg", quality=88)
+    assert len(asked) == before  # looked up in the page: no request per move
+    page.keyboard.press("r")  # Remove mode: a negative click takes away, it takes nothing
+    page.mouse.move(*_point_at(page, *inside_point(photo.masks[1])))
+    assert page.locator("#hover").is_hidden()
+    page.keyboard.press("a")
+    _click_photo(page, *inside_point(photo.masks[1]))
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.mouse.move(*_point_at(page, *inside_point(photo.masks[0])))
+    assert page.locator("#hover").is_hidden()  # the dog's object has a click
+    page.keyboard.press("n")  # a new object: its first click would take the owner
+    page.mouse.move(*_point_at(page, *inside_point(photo.masks[0])), steps=2)
+    page.wait_for_function("() => !document.getElementById('hover').hidden")
+    assert page.problems == []
+
+
+def test_the_first_run_says_the_kernels_are_being_compiled(browser, monkeypatch):
+    """Issue 32: on the first run after installing, the page says once that the fit
+    kernels are being compiled and about how long, and the notice goes when they are."""
+    from jeanscv_cli.serve import engine
+
+    done = threading.Event()
+    monkeypatch.setattr(engine, "kernels_to_compile", lambda: True)
+    monkeypatch.setattr(engine, "kernels_warming", lambda: not done.is_set())
+    with _serving({}) as (url, _):
+        context = browser.new_context(viewport={"width": 1280, "height": 860})
+        try:
+            page = context.new_page()
+            page.goto(url + "/")
+            notice = page.locator("#first-run")
+            notice.wait_for(state="visible")
+            assert "compiled, once (about 25 s)" in notice.text_content()
+            done.set()
+            notice.wait_for(state="hidden", timeout=10_000)
+            page.reload()
+            page.wait_for_selector("#garment option", state="attached")
+            assert notice.is_hidden()  # said once: not on the next visit
+        finally:
+            context.close()
+
+
+def test_a_boxs_handles_adjust_it_and_segment_again(server, page):
+    """Issue 32's wish: a drawn box has handles to adjust it; letting one go segments
+    again with the new box, one step to undo."""
+    bodies = []
+    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    photo = two_objects()
+    _drop_photo(page, photo.image)
+    rows, cols = np.nonzero(photo.masks[1])  # the dog
+    middle = (cols.min() + cols.max()) / 2
+    x0, y0, x1, y1 = middle, rows.min() - 8, cols.max() + 8, rows.max() + 8  # its right half
+    page.mouse.move(*_point_at(page, x0, y0))
+    page.mouse.down()
+    page.mouse.move(*_point_at(page, x1, y1), steps=5)
+    page.mouse.up()
+    _wait_until(page, lambda: bodies, 30, "no render after the box")
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    assert page.locator("#overlay rect.handle").count() == 8
+    # The left edge's handle, dragged to the dog's left: the box holds the whole dog.
+    page.mouse.move(*_point_at(page, x0, (y0 + y1) / 2))
+    assert page.evaluate("() => document.getElementById('frame').style.cursor") == "ew-resize"
+    page.mouse.down()
+    page.mouse.move(*_point_at(page, cols.min() - 8, (y0 + y1) / 2), steps=5)
+    assert page.locator("#overlay rect.box.draft").count() == 1  # drawn as it is dragged
+    page.mouse.up()
+    _wait_until(page, lambda: len(bodies) == 2, 30, "no render after the handle was let go")
+    sent = bodies[-1]["objects"]
+    assert len(sent) == 1 and sent[0]["positive"] == [] and sent[0]["negative"] == []  # no click added
+    assert np.allclose(sent[0]["box"], [cols.min() - 8, y0, x1, y1], atol=1.5), sent
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.keyboard.press("Control+z")  # the box as it was drawn
+    _wait_until(page, lambda: len(bodies) == 3, 30, "no render after Undo")
+    assert np.allclose(bodies[-1]["objects"][0]["box"], [x0, y0, x1, y1], atol=1.5)
+    assert page.problems == []
+
+
+def _pinch(page, centre: tuple[float, float], start: float, end: float) -> None:
+    """Two fingers on the screen at ``centre``, ``start`` apart, spread to ``end`` apart
+    (Chromium's own touch events, through the DevTools protocol)."""
+    session = page.context.new_cdp_session(page)
+    x, y = centre
+
+    def fingers(gap: float) -> list:
+        return [{"x": x - gap / 2, "y": y, "id": 0}, {"x": x + gap / 2, "y": y, "id": 1}]
+
+    session.send("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": fingers(start)})
+    for step in range(1, 7):
+        session.send(
+            "Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": fingers(start + (end - start) * step / 6)}
+        )
+    session.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+    session.detach()
+
+
+def test_a_phone_by_touch_alone(server, browser, tmp_path):
+    """Issue 32's phone wishes and Checks' touch-only run of the main flow: tap to choose
+    a photo, the photo the screen's full width, a tap that moves the jeans, the sticky
+    Add/Remove/Undo bar and the mode shown on the photo, zoom by buttons and by a pinch
+    (no click made by it), the meme downloaded by a tap."""
+    path = tmp_path / "pets.png"
+    photo = two_objects()
+    Image.fromarray(photo.image).save(path)
+    context = browser.new_context(
+        viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True, accept_downloads=True
+    )
+    try:
+        page = context.new_page()
+        problems = []
+        page.on("pageerror", lambda error: problems.append(str(error)))
+        choosers = []
+        page.on("filechooser", lambda chooser: choosers.append(chooser))
+        page.goto(server + "/")
+        page.wait_for_selector("#garment option", state="attached")
+        page.tap("#drop")
+        _wait_until(page, lambda: choosers, 10, "a tap on the drop zone opened no file chooser")
+        choosers[0].set_files(str(path))
+        _wait_for_result(page, "pets.png")
+        shown = page.locator("#result").bounding_box()
+        assert shown["x"] == 0 and shown["width"] == 390  # the full width
+        assert page.is_visible("#phone-bar") and page.inner_text("#mode-badge") == "+ Add"
+        bar = page.locator("#phone-bar").bounding_box()
+        assert abs(bar["y"] + bar["height"] - 844) < 2  # at the bottom of the screen
+        page.touchscreen.tap(*_point_at(page, *inside_point(photo.masks[1])))  # the dog
+        page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+        assert page.locator("#overlay circle.click.pos").count() == 1
+        page.tap("#bar-remove")
+        assert (
+            page.inner_text("#mode-badge") == "\u2212 Remove"
+            and page.get_attribute("#mode-remove", "aria-pressed") == "true"
+        )
+        if os.environ.get("JEANSCV_PHONE_SCREENSHOT"):
+            page.screenshot(path=os.environ["JEANSCV_PHONE_SCREENSHOT"], type="jpeg", quality=85)
+        page.touchscreen.tap(*_point_at(page, 400, 470))  # the grass below them: taken away (it was not in)
+        page.wait_for_function("() => document.querySelectorAll('#overlay circle.click.neg').length === 1")
+        page.tap("#bar-undo")
+        assert page.locator("#overlay circle.click.neg").count() == 0
+        page.wait_for_function("() => !document.getElementById('status').classList.contains('busy')")
+        page.tap("#bar-add")
+        assert page.inner_text("#mode-badge") == "+ Add"
+
+        page.tap("#zoom-in")
+        assert page.locator("#result").bounding_box()["width"] > 500
+        page.tap("#zoom-out")
+        assert page.locator("#result").bounding_box()["width"] == 390
+        clicks = page.locator("#overlay circle.click").count()
+        frame = page.locator("#zoom").bounding_box()
+        _pinch(page, (frame["x"] + frame["width"] / 2, frame["y"] + frame["height"] / 2), 60, 180)
+        page.wait_for_function("() => Number(document.getElementById('zoom').dataset.zoom) > 2")
+        assert page.locator("#overlay circle.click").count() == clicks  # a pinch is no click
+        ring = page.locator("#overlay circle.click").bounding_box()["width"] / 2
+        assert 5 <= ring <= 8  # markers stay their size on the screen
+
+        with page.expect_download(timeout=60_000) as download:
+            page.tap("#dl-meme")
+        assert download.value.suggested_filename == "pets.meme.png"
+        assert problems == []
+    finally:
+        context.close()
+
+
+def test_the_main_flow_by_keyboard_alone(server, page, tmp_path):
+    """Issue 32's Checks: a keyboard-only run of the main flow. Tab to the drop zone,
+    Enter opens the chooser; Tab to the photo, whose cross the arrows move (the hover
+    preview following it) and Enter clicks there; a caption typed; the meme downloaded
+    from its button by Enter."""
+    path = tmp_path / "pets.png"
+    photo = two_objects()
+    Image.fromarray(photo.image).save(path)
+    bodies = []
+    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
+    choosers = []
+    page.on("filechooser", lambda chooser: choosers.append(chooser))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+
+    def tab_to(element: str, most: int = 40) -> None:
+        for _ in range(most):
+            page.keyboard.press("Tab")
+            if page.evaluate("() => document.activeElement.id") == element:
+                return
+        raise AssertionError(f"Tab never reached #{element}")
+
+    tab_to("drop")
+    page.keyboard.press("Enter")
+    _wait_until(page, lambda: choosers, 10, "Enter on the drop zone opened no file chooser")
+    choosers[0].set_files(str(path))
+    _wait_for_result(page, "pets.png")
+    page.wait_for_function("() => document.getElementById('frame').dataset.hover === 'ready'", timeout=90_000)
+    page.evaluate("() => document.activeElement.blur()")
+    tab_to("frame")
+    assert page.locator("#overlay path.cursor").count() == 1  # the cross, at the photo's middle
+    target = inside_point(photo.masks[1])  # the dog; the cross moves 16 px (2% of 800) a press
+    for key, steps in (("ArrowRight", round((target[0] - 400) / 16)), ("ArrowDown", round((target[1] - 250) / 16))):
+        for _ in range(abs(steps)):
+            page.keyboard.press(key)
+    assert page.locator("#hover").is_visible()  # what Enter would take, shown
+    page.keyboard.press("Enter")
+    _wait_until(page, lambda: bodies, 30, "Enter on the photo made no click")
+    point = bodies[-1]["objects"][0]["positive"][0]
+    assert photo.masks[1][int(point[1]), int(point[0])]  # a click on the dog
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    tab_to("top")
+    page.keyboard.type("how would a dog")
+    tab_to("dl-meme")
+    with page.expect_download(timeout=60_000) as download:
+        page.keyboard.press("Enter")
+    assert download.value.suggested_filename == "pets.meme.png"
+    assert page.problems == []

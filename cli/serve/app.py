@@ -47,7 +47,19 @@ _MEDIA = {
     ".gif": "image/gif",
 }
 #: The page's ES modules: app.js, the entry, imports the others.
-_SCRIPTS = ("app.js", "state.js", "server.js", "drawing.js", "captions.js", "editor.js", "folder.js")
+_SCRIPTS = (
+    "app.js",
+    "state.js",
+    "server.js",
+    "drawing.js",
+    "captions.js",
+    "editor.js",
+    "folder.js",
+    "hover.js",
+    "boxes.js",
+    "zoom.js",
+    "cursor.js",
+)
 _STATIC = (
     {"/": ("index.html", "text/html; charset=utf-8")}
     | {f"/static/{name}": (name, "text/javascript; charset=utf-8") for name in _SCRIPTS}
@@ -106,6 +118,7 @@ class State:
         self.folder_lock = threading.Lock()
         self.backend = config.backend
         self.folder = config.folder.resolve() if config.folder is not None else None
+        self.compiling = False  # the fit kernels were not compiled when the server started
         # Folder items (by name) whose subject may be the wrong thing, once known: their
         # output was made, or they were opened, here (True/False; clicks make it False).
         self.unsure: dict[str, bool] = {}
@@ -214,6 +227,8 @@ class _Api:
         return Response(body, media_type=media, headers={"Cache-Control": "no-cache"})
 
     async def options(self, request: Request) -> Response:
+        if self.state.compiling and not engine.kernels_warming():
+            self.state.compiling = False  # compiled: said once, never again
         return JSONResponse(
             {
                 "garments": engine.garments(),
@@ -222,6 +237,9 @@ class _Api:
                 "max_upload": self.config.max_upload,
                 "folder": self.config.folder is not None,
                 "folder_name": self.config.folder.name if self.config.folder is not None else "",
+                # A fresh install's first run: the page says the kernels are being compiled.
+                "compiling": self.state.compiling,
+                "compile_seconds": engine.COMPILE_SECONDS,
             }
         )
 
@@ -253,6 +271,7 @@ class _Api:
             # The click session (about half a second) is made while the person looks,
             # on a worker that no request is waiting for.
             self.state.pool.submit_background(_prepare_session, photo)
+            self.state.pool.submit_background(_prepare_hover, photo)  # a second job: a click can come first
         return {"photo": photo_id, "name": name, "kind": photo.kind, **answer}
 
     def upload_job(self, upload, name: str, subject: str) -> dict:
@@ -350,6 +369,18 @@ class _Api:
         return Response(
             photo.original_jpeg, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"}
         )
+
+    async def hover(self, request: Request) -> Response:
+        """The photo's first-click map (:func:`engine.hover_map`): what the page outlines
+        under the pointer before a click, looked up there without asking again."""
+        photo = self.state.photos.get(request.path_params["photo"])
+        if photo is None:
+            return _error(404, "no such photo (it may have expired: drop it again)")
+        if photo.kind != "photo":
+            return _error(404, "a silhouette drawing has nothing to click")
+        data = await self.job(photo.name, engine.hover_map, photo)
+        self.state.photos.resize(request.path_params["photo"], photo.nbytes)
+        return Response(data, media_type="application/json", headers={"Cache-Control": "private, max-age=3600"})
 
     def make_download(self, photo: engine.Photo, result: Result, wanted: engine.RenderOptions, kind: str):
         objects = engine.fitted_objects(photo, result.clicks, wanted, self.state.backend)
@@ -468,6 +499,9 @@ class _Api:
     async def lifespan(self, app):
         self.state.open()
         if self.config.warm:
+            # A fresh install compiles the kernels now, in the background (about 25 s):
+            # the page says so while it lasts (/api/options "compiling").
+            self.state.compiling = engine.kernels_to_compile()
             engine.warm_up()
         try:
             yield
@@ -494,6 +528,7 @@ def create_app(config: Config) -> Guard:
         Route("/api/photos", api.upload, methods=["POST"]),
         Route("/api/photos/{photo}/render", api.rerender, methods=["POST"]),
         Route("/api/photos/{photo}/original", api.original),
+        Route("/api/photos/{photo}/hover", api.hover),
         Route("/api/results/{result}/{kind}", api.result_file),
         Route("/api/folder", api.folder_list),
         Route("/api/folder/{item:int}/thumb", api.folder_thumb, methods=["POST"]),
@@ -534,6 +569,13 @@ def _prepare_session(photo) -> None:
         with photo.lock:
             photo.session()
     except Exception:  # noqa: BLE001 - the first click will report it
+        pass
+
+
+def _prepare_hover(photo) -> None:
+    try:
+        engine.hover_map(photo)
+    except Exception:  # noqa: BLE001 - the page's request for it will report it
         pass
 
 

@@ -125,6 +125,25 @@ def default_backend() -> str:
     return resolve_backend(None, "cpu")
 
 
+#: About how long a fresh install's first run compiles the fit kernels (two free cores;
+#: the command line's first run says the same).
+COMPILE_SECONDS = 25
+
+
+def kernels_to_compile() -> bool:
+    """Whether the fit kernels are not compiled for this installation yet (its first run)."""
+    from jeanscv.fitting._fast import kernels_cached
+
+    return default_backend() == "fast" and not kernels_cached()
+
+
+def kernels_warming() -> bool:
+    """Whether :func:`warm_up`'s background thread still loads or compiles the kernels."""
+    from jeanscv.fitting import _fast
+
+    return _fast.warming()
+
+
 def warm_up() -> None:
     """Compile or load the fit kernels now, and have segmentation's colour tables built,
     so the first photo does not wait for them."""
@@ -158,7 +177,9 @@ class Photo:
     original_jpeg: bytes | None = None
     shared: SharedHypotheses | None = None
     _session: object | None = None
+    hover: bytes | None = None  # the hover preview's map (hover_map), made once
     lock: threading.Lock = field(default_factory=threading.Lock)
+    hover_lock: threading.Lock = field(default_factory=threading.Lock)  # one hover map made at a time
     fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
 
     @property
@@ -176,6 +197,7 @@ class Photo:
         total += sum(masks.values())
         if self._session is not None:
             total += self.pixels.nbytes // 8  # working copies and cached masks
+        total += len(self.hover or b"")
         if self.shared is not None:
             total += self.shared.nbytes
         return total
@@ -549,3 +571,53 @@ def thumbnail(path: Path, side: int) -> bytes:
     except (OSError, SyntaxError, ValueError, EOFError, Image.DecompressionBombError):
         raise JeansError(f"{path.name} is damaged") from None
     return buffer.getvalue()
+
+
+# ------------------------------------------------------------------------- hover preview
+
+
+def hover_map(photo: Photo) -> bytes:
+    """The photo's first-click map for the page's hover preview, encoded
+    (:func:`encode_hover_map`), made once per photo from its click session."""
+    from jeanscv.subject.hover import first_click_map
+
+    # Made once: a second caller (the page's request while the background job makes it)
+    # waits for the first; clicks do not (the map only reads the session: photo.lock is
+    # held just to get it).
+    with photo.hover_lock:
+        if photo.hover is None:
+            with photo.lock:
+                session = photo.session()
+            photo.hover = encode_hover_map(first_click_map(session), photo.size)
+        return photo.hover
+
+
+def encode_hover_map(found, size: tuple[int, int]) -> bytes:
+    """A :class:`~jeanscv.subject.hover.FirstClickMap` as the page reads it: JSON with the
+    working copy's ``width`` and ``height``, the photo's ``size``, the superpixels'
+    ``count``, ``labels`` (the superpixel of each working pixel, row by row, as
+    little-endian uint16), ``choice`` (per superpixel, the region a click there takes,
+    -1 none, as little-endian int16) and ``regions`` (a bit per superpixel per region,
+    most significant bit first, each region's row padded to whole bytes); the three
+    arrays deflated (zlib) and base64-encoded: 20-60 KB in all."""
+    import base64
+    import zlib
+
+    def packed(data: bytes) -> str:
+        return base64.b64encode(zlib.compress(data, 6)).decode("ascii")
+
+    height, width = found.labels.shape
+    count = len(found.choice)
+    bits = np.zeros((max(len(found.regions), 1), count), bool)
+    for row, nodes in enumerate(found.regions):
+        bits[row, nodes] = True
+    document = {
+        "width": width,
+        "height": height,
+        "size": [int(size[0]), int(size[1])],
+        "count": count,
+        "labels": packed(found.labels.astype("<u2").tobytes()),
+        "choice": packed(found.choice.astype("<i2").tobytes()),
+        "regions": packed(np.packbits(bits, axis=1).tobytes()),
+    }
+    return json.dumps(document, separators=(",", ":")).encode("utf-8")

@@ -137,6 +137,10 @@ def run_server(
         else {}
     )
     _say(f"{what} at {url} (Ctrl-C stops)")
+    if engine.kernels_to_compile():
+        _say(
+            f"compiling the fit kernels for this installation, once (about {engine.COMPILE_SECONDS} s); the page says so"
+        )
     if open_browser:
         opener = threading.Timer(1.0, webbrowser.open, (url,))
         opener.daemon = True

@@ -459,17 +459,25 @@ def _box_mask(box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndar
     return inside
 
 
+def _grouped_pieces(mask: np.ndarray) -> np.ndarray:
+    """``(H, W) int32`` labels of ``mask``'s pieces (0 outside them), pieces that a
+    closing of 1% of the object's size joins counting as one (the grouping of
+    :func:`_constrained`; a label may hold pixels of the closing outside ``mask``)."""
+    eight = mask.astype(np.uint8)
+    radius = int(MORPH_FRACTION * np.sqrt(max(int(eight.sum()), 1)))
+    grouped = cv2.morphologyEx(eight, cv2.MORPH_CLOSE, disk(radius)) if radius > 0 else eight
+    grouped |= eight
+    _, components = cv2.connectedComponents(grouped, connectivity=8)
+    return components
+
+
 def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
     """``mask`` made to obey the clicks: the pieces that hold a positive click (pieces
     that a closing of 1% of the object's size joins count as one, as in
     :func:`~jeanscv.subject.objects.split_objects`: a leg cut off by a thin gap stays),
     holes filled unless a negative click is in one; every positive click in, every
     negative click out."""
-    eight = mask.astype(np.uint8)
-    radius = int(MORPH_FRACTION * np.sqrt(max(int(eight.sum()), 1)))
-    grouped = cv2.morphologyEx(eight, cv2.MORPH_CLOSE, disk(radius)) if radius > 0 else eight
-    grouped |= eight
-    _, components = cv2.connectedComponents(grouped, connectivity=8)
+    components = _grouped_pieces(mask)
     keep = {int(components[y, x]) for x, y in pos} - {0}
     kept = (np.isin(components, list(keep)) & mask) if keep else np.zeros_like(mask, dtype=bool)
     filled = fill_holes(kept)

@@ -4,6 +4,9 @@
 import { updateCaptions } from "./captions.js";
 import { drawOverlay, watchFit } from "./drawing.js";
 import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
+import { clearHover, hoverMove } from "./hover.js";
+import { wireCursor } from "./cursor.js";
+import { wireZoom } from "./zoom.js";
 import { applyFilter, loadGallery, openNeighbour, saveToFolder } from "./folder.js";
 import { answerOf } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -24,11 +27,31 @@ async function loadOptions() {
   fill($("garment"), options.garments, "jeans");
   fill($("posture"), options.postures, "upright");
   state.maxUpload = options.max_upload;
+  if (options.compiling) watchCompiling(options.compile_seconds);
   if (options.folder) {
     $("gallery").hidden = false;
     $("folder-name").textContent = options.folder_name;
     loadGallery();
   }
+}
+
+// A fresh install's first run: the fit kernels compile in the background (about
+// half a minute, once). Said while it lasts; a photo dropped meanwhile waits for them.
+function watchCompiling(seconds) {
+  const notice = $("first-run");
+  notice.textContent = `First run after installing: the fit kernels are being compiled, once (about ${seconds} s). `
+    + "A photo dropped now is ready when they are; later runs start at once.";
+  notice.hidden = false;
+  const poll = setInterval(async () => {
+    try {
+      const now = await answerOf(await fetch("/api/options"));
+      if (now.compiling) return;
+    } catch (error) {
+      return; // asked again in a moment
+    }
+    clearInterval(poll);
+    notice.hidden = true;
+  }, 2000);
 }
 
 // ------------------------------------------------------------------ wiring
@@ -60,6 +83,8 @@ function wire() {
   const frame = $("frame");
   frame.addEventListener("pointerdown", pointerDown);
   frame.addEventListener("pointermove", pointerMove);
+  frame.addEventListener("pointermove", hoverMove);
+  frame.addEventListener("pointerleave", clearHover);
   frame.addEventListener("pointerup", pointerUp);
   frame.addEventListener("pointercancel", pointerUp);
   frame.addEventListener("dragstart", (e) => e.preventDefault()); // a drag draws a box, it does not carry the picture off
@@ -68,6 +93,11 @@ function wire() {
   $("mode-add").addEventListener("click", () => setMode(false));
   $("mode-remove").addEventListener("click", () => setMode(true));
   $("undo").addEventListener("click", undo);
+  $("bar-add").addEventListener("click", () => setMode(false));
+  $("bar-remove").addEventListener("click", () => setMode(true));
+  $("bar-undo").addEventListener("click", undo);
+  wireZoom();
+  wireCursor();
   $("reset").addEventListener("click", reset);
   $("new-object").addEventListener("click", newObject);
   $("watch").addEventListener("click", watchFit);
@@ -91,6 +121,7 @@ function wire() {
   $("folder-filter").addEventListener("change", applyFilter);
   $("marks").addEventListener("change", () => {
     state.marks = $("marks").checked;
+    clearHover();
     drawOverlay();
   });
   window.addEventListener("resize", () => drawOverlay());

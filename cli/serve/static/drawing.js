@@ -1,5 +1,6 @@
 // Drawing on the photo: the objects' outlines and the clicks (an SVG over the picture),
 // and the fit played back.
+import { currentBox, handleSquares } from "./boxes.js";
 import { $, SVG_NS, state } from "./state.js";
 
 function rectangle(box, cls) {
@@ -12,8 +13,9 @@ function rectangle(box, cls) {
   return rect;
 }
 
-// draftBox: the box being dragged, drawn as it goes.
-function drawOverlay(animatedJeans = null, draftBox = null) {
+// draftBox: the box being dragged, drawn as it goes; with ``adjusting`` it stands for
+// the current object's box (a handle is being dragged).
+function drawOverlay(animatedJeans = null, draftBox = null, adjusting = false) {
   const svg = $("overlay");
   svg.replaceChildren();
   const answer = state.result;
@@ -42,9 +44,13 @@ function drawOverlay(animatedJeans = null, draftBox = null) {
     }
   }
   state.objects.forEach((object, index) => {
-    if (object.box) svg.appendChild(rectangle(object.box, `box${index === state.current ? "" : " faded"}`));
+    if (object.box && !(adjusting && index === state.current)) {
+      svg.appendChild(rectangle(object.box, `box${index === state.current ? "" : " faded"}`));
+    }
   });
   if (draftBox) svg.appendChild(rectangle(draftBox, "box draft"));
+  const handled = adjusting ? draftBox : currentBox();
+  if (handled) for (const square of handleSquares(handled, 9 * photoPixelsPerScreenPixel, rectangle)) svg.appendChild(square);
   state.objects.forEach((object, index) => {
     for (const [sign, points] of [["pos", object.positive], ["neg", object.negative]]) {
       for (const [x, y] of points) {
@@ -57,6 +63,14 @@ function drawOverlay(animatedJeans = null, draftBox = null) {
       }
     }
   });
+  if (state.cursor) { // the keyboard's cross (cursor.js)
+    const [x, y] = state.cursor;
+    const size = 12 * photoPixelsPerScreenPixel;
+    const cross = document.createElementNS(SVG_NS, "path");
+    cross.setAttribute("d", `M${x - size},${y}H${x + size}M${x},${y - size}V${y + size}`);
+    cross.setAttribute("class", "cursor");
+    svg.appendChild(cross);
+  }
 }
 
 // ------------------------------------------------------------------ the fit, animated

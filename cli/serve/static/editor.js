@@ -1,6 +1,9 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
+import { adjusted, handleAt, showHandleCursor } from "./boxes.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
+import { clearHover, forgetHover, loadHover } from "./hover.js";
+import { resetZoom } from "./zoom.js";
 import { post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
 
@@ -19,7 +22,10 @@ function leavePhoto() {
   stopAnimation();
   state.photo = null; // no click, render or download for the photo left
   state.result = null;
+  state.cursor = null;
   drawOverlay();
+  forgetHover();
+  resetZoom();
   return state.generation;
 }
 
@@ -103,6 +109,7 @@ function start(answer, item) {
   if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
   updateControls();
+  if (answer.kind === "photo") loadHover(answer.photo, state.generation);
 }
 
 // ------------------------------------------------------------------ results
@@ -203,21 +210,30 @@ function boxOf(a, b) {
 function pointerDown(event) {
   state.dragged = false;
   if (state.kind !== "photo" || !state.result || event.button !== 0 || event.pointerType === "touch") return;
-  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false };
+  // On a handle of the current object's box: that box's sides move (no click, no new box).
+  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false, handle: handleAt(event) };
 }
 
 function pointerMove(event) {
-  if (!drag) return;
+  if (!drag) {
+    showHandleCursor(event);
+    return;
+  }
   if (!drag.moved && Math.hypot(event.clientX - drag.x, event.clientY - drag.y) < 6) return;
   if (!drag.moved) $("frame").setPointerCapture(event.pointerId);
   drag.moved = true;
-  drawOverlay(null, boxOf(drag.start, photoPoint(event)));
+  if (drag.handle) drawOverlay(null, adjusted(state.objects[state.current].box, drag.handle, photoPoint(event)), true);
+  else drawOverlay(null, boxOf(drag.start, photoPoint(event)));
 }
 
 function pointerUp(event) {
   if (!drag) return;
   const done = drag;
   drag = null;
+  if (done.handle) {
+    adjustBox(done, event);
+    return;
+  }
   if (!done.moved) return; // a click: the click event adds it
   if (event.type === "pointercancel") {
     drawOverlay();
@@ -238,6 +254,22 @@ function pointerUp(event) {
   changed();
 }
 
+// A handle let go: the box takes its new sides (one step to undo) and is segmented again.
+function adjustBox(done, event) {
+  state.dragged = true; // a press on a handle is no click, moved or not
+  const object = state.objects[state.current];
+  const box = done.moved && event.type !== "pointercancel" ? adjusted(object.box, done.handle, photoPoint(event)) : null;
+  if (!box || box[2] - box[0] < 2 || box[3] - box[1] < 2) {
+    drawOverlay();
+    return;
+  }
+  state.history.push({ object: state.current, box, before: object.box });
+  object.box = box;
+  state.future = [];
+  state.clickPending = true; // taken back if nothing is found in it
+  changed();
+}
+
 function addClick(event) {
   if (state.kind !== "photo" || !state.result) return;
   event.preventDefault();
@@ -246,10 +278,16 @@ function addClick(event) {
     state.dragged = false;
     return;
   }
+  addPoint(photoPoint(event), negative);
+}
+
+// A click at ``point`` (photo pixels) for the current object: the pointer's, or the keyboard cursor's.
+function addPoint(point, negative) {
+  if (state.kind !== "photo" || !state.result) return;
   if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
   const object = state.objects[state.current];
   // A negative click first means "the automatic subject, minus this" (the server does it).
-  (negative ? object.negative : object.positive).push(photoPoint(event));
+  (negative ? object.negative : object.positive).push(point);
   state.history.push({ object: state.current, sign: negative ? "negative" : "positive" });
   state.future = [];
   state.clickPending = true;
@@ -333,6 +371,7 @@ function clearClicks() {
 }
 
 function changed() {
+  clearHover(); // the next pointer move shows it again if a click would still be a first one
   drawOverlay();
   updateControls();
   rerender();
@@ -353,14 +392,23 @@ function newObject() {
 
 function setMode(negative) {
   state.negative = negative;
+  clearHover();
   $("mode-add").setAttribute("aria-pressed", String(!negative));
   $("mode-remove").setAttribute("aria-pressed", String(negative));
+  $("bar-add").setAttribute("aria-pressed", String(!negative));
+  $("bar-remove").setAttribute("aria-pressed", String(negative));
+  const badge = $("mode-badge");
+  badge.textContent = negative ? "\u2212 Remove" : "+ Add";
+  badge.classList.toggle("remove", negative);
 }
 
 function updateControls() {
   const photo = state.kind === "photo";
   for (const id of ["mode-add", "mode-remove", "new-object", "undo", "redo", "reset"]) $(id).disabled = !photo;
   $("undo").disabled = !photo || state.history.length === 0;
+  $("bar-undo").disabled = $("undo").disabled;
+  $("bar-add").disabled = $("bar-remove").disabled = !photo;
+  $("mode-badge").hidden = !photo;
   $("redo").disabled = !photo || state.future.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;
   $("new-object").disabled = !photo || clickedObjects().length === 0;
@@ -384,4 +432,4 @@ function updateControls() {
   });
 }
 
-export { addClick, clickedObjects, describe, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };
+export { addClick, addPoint, clickedObjects, describe, pointerDown, pointerMove, pointerUp, clicksKey, leavePhoto, newObject, redo, rerender, reset, setMode, start, undo, updateControls, upload };

@@ -22,6 +22,7 @@ const state = {
   shown: 0, // the newest render shown
   inFlight: false,
   again: false,
+  cursor: null, // the keyboard's cross on the photo ([x, y]), while the photo has the keyboard's focus
   dragged: false, // the press that ends now was a drag (its box is made; it is no click)
   clickPending: false, // the next render was asked for by a click (taken back if it fails)
   animating: false,

@@ -254,6 +254,11 @@ def warm_up() -> None:
     _warming.start()
 
 
+def warming() -> bool:
+    """Whether :func:`warm_up`'s thread is still loading (or compiling) the kernels."""
+    return _warming is not None and _warming.is_alive()
+
+
 def load_kernels() -> None:
     """Load (or, with an empty cache, compile) every kernel a photo's run calls: the
     objective, the fit's step loop and the compositing's rasterizers, on tiny inputs."""
