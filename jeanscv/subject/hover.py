@@ -9,8 +9,8 @@ auto's hypotheses that hold it, a GrabCut seeded at the click, the geodesic regi
 nearer the click than the border and a GrabCut seeded by that region, the candidate the
 others agree with most and the click lies deepest in. Here that choice is made once per
 superpixel (at its pixel nearest its centre), without the two GrabCuts (0.2 s a click:
-2,000 superpixels would take minutes): the hypotheses' pieces are cut once, the geodesic regions come from
-one pruned Dijkstra per superpixel (what lies farther from the click than from the
+2,000 superpixels would take minutes): the hypotheses' pieces are cut once, the
+geodesic regions come from one pruned Dijkstra per superpixel (what lies farther from the click than from the
 border is never expanded), and agreement is counted per superpixel. Each region is a
 set of superpixels (a piece: the superpixels mostly in it), so the page draws it from
 the superpixel labels alone. ``bench/hover_preview.py`` measures how often the region
