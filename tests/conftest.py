@@ -58,6 +58,31 @@ def compiled_kernels():
         _fast.load_kernels()
 
 
+class _RealPhotoHypotheses:
+    """Per real photo, one :class:`~jeanscv.subject.photo.SharedHypotheses` for its two
+    users, ``test_real_photos`` (auto) and ``test_real_clicks`` (click sessions): auto's
+    hypotheses, 90% of either's time on a photo, are cut once between them (the same
+    results: ``test_clicks.py`` checks), and dropped once both have them (~7 MB each)."""
+
+    def __init__(self) -> None:
+        self._held: dict[str, object] = {}
+
+    def take(self, stem: str):
+        """The photo's shared hypotheses: made for its first user, handed over to its second."""
+        from jeanscv.subject.photo import SharedHypotheses
+
+        if stem in self._held:
+            return self._held.pop(stem)
+        shared = self._held[stem] = SharedHypotheses()
+        return shared
+
+
+@pytest.fixture(scope="session")
+def real_photo_hypotheses() -> _RealPhotoHypotheses:
+    """``real_photo_hypotheses.take(stem)``: see :class:`_RealPhotoHypotheses`."""
+    return _RealPhotoHypotheses()
+
+
 def float64_tensor(array):
     """``array`` as a float64 torch tensor."""
     import torch

@@ -416,7 +416,13 @@ def test_kernel_cache_of_a_read_only_install(tmp_path, monkeypatch):
 
     kernels = tmp_path / "site-packages" / "jeanscv" / "fitting" / "_fast"
     kernels.mkdir(parents=True)
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    # kernel_cache_dir sets NUMBA_CACHE_DIR (and numba's config) itself, below: both put back
+    # after the test, or every later fit of the suite, and every subprocess it starts, compiled
+    # the kernels afresh into this test's empty folder (a minute of CI). setenv, unlike delenv
+    # of an unset variable, is undone; kernel_cache_dir takes "" as unset.
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
+    if "numba" in sys.modules:
+        monkeypatch.setattr(sys.modules["numba"].config, "CACHE_DIR", sys.modules["numba"].config.CACHE_DIR)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home-cache"))
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
     (tmp_path / "tmp").mkdir()

@@ -50,12 +50,13 @@ pytestmark = pytest.mark.skipif(not PHOTOS, reason="../shared/real_photos is abs
 
 
 @pytest.fixture(scope="module")
-def clicked() -> dict[str, tuple[float, float]]:
+def clicked(real_photo_hypotheses) -> dict[str, tuple[float, float]]:
     """Per photo: IoU with the reference after one and after three simulated clicks."""
     results = {}
     for path in PHOTOS:
         reference = reference_mask(path)
-        session = ClickSession(np.ascontiguousarray(load_image(path).pixels[..., :3]))
+        pixels = np.ascontiguousarray(load_image(path).pixels[..., :3])
+        session = ClickSession(pixels, shared=real_photo_hypotheses.take(path.stem))
         positive, negative, predicted, scores = [], [], None, []
         for _ in range(3):
             sign, point = simulated_click(reference, predicted)

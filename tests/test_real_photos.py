@@ -47,11 +47,11 @@ pytestmark = pytest.mark.skipif(not PHOTOS, reason="../shared/real_photos is abs
 
 
 @pytest.fixture(scope="module")
-def segmented() -> dict[str, tuple[float, dict]]:
+def segmented(real_photo_hypotheses) -> dict[str, tuple[float, dict]]:
     """Per photo: the IoU with the reference mask, and auto's details."""
     results = {}
     for path in PHOTOS:
-        found = segment(load_image(path).pixels[..., :3])
+        found = segment(load_image(path).pixels[..., :3], shared=real_photo_hypotheses.take(path.stem))
         results[path.stem] = iou(found.mask, reference_mask(path)), found.details
     return results
 
@@ -72,12 +72,12 @@ def test_real_photo_mean_iou(scores):
     assert np.mean(list(scores.values())) >= MEAN_FLOOR
 
 
-def test_auto_says_why_the_winner_won():
-    found = segment(load_image(PHOTOS[0]).pixels[..., :3])
-    chosen = found.details["chosen"]
-    assert chosen in found.details["candidates"] and chosen in found.details["reason"]
-    best = max(found.details["candidates"].values(), key=lambda c: c["score"])
-    assert best is found.details["candidates"][chosen]
+def test_auto_says_why_the_winner_won(segmented):
+    _, details = segmented[PHOTOS[0].stem]  # segment(PHOTOS[0]'s pixels)'s details
+    chosen = details["chosen"]
+    assert chosen in details["candidates"] and chosen in details["reason"]
+    best = max(details["candidates"].values(), key=lambda c: c["score"])
+    assert best is details["candidates"][chosen]
 
 
 def test_the_worst_photos_are_called_uncertain(segmented):

@@ -103,19 +103,17 @@ def finished_outputs(out: Path) -> list[str]:
     return sorted(p.name for p in out.iterdir() if ".jeans." in p.name and not p.name.startswith("."))
 
 
-def resume(folder: Path, out: Path, names: list[str], before: dict[str, bytes]) -> None:
-    """Run again: exit 0, every output there and complete, the earlier ones untouched."""
-    done = subprocess.run(
-        [sys.executable, "-m", "jeanscv", folder, "-o", out, *SLOW, "-j", "1"],
-        capture_output=True,
-        text=True,
-    )
-    assert done.returncode == 0, done.stderr
+def resume(run_cli, folder: Path, out: Path, names: list[str], before: dict[str, bytes]) -> None:
+    """Run again: exit 0, every output there and complete, the earlier ones untouched.
+    (In this process: what a run finds on disk does not depend on which process runs it,
+    and a fresh interpreter's imports were most of a subprocess's time.)"""
+    done = run_cli(folder, "-o", out, *SLOW, "-j", "1")
+    assert done.exit_code == 0, done.stderr
     again = assert_valid_outputs(out, names)
     assert {name: again[name] for name in before} == before
 
 
-def test_sigkill_to_the_parent(tmp_path):
+def test_sigkill_to_the_parent(tmp_path, run_cli):
     folder, out, names = make_folder(tmp_path)
     run = jeanscv(folder, "-o", out, "-j", "2", *SLOW)
     assert wait_until(lambda: any_output(out) or run.poll() is not None)
@@ -125,7 +123,7 @@ def test_sigkill_to_the_parent(tmp_path):
     # The workers notice within a second or so, and stop; a file in progress leaves nothing.
     assert wait_until(lambda: not any(alive(pid) for pid in processes), timeout=120), "orphaned workers"
     before = assert_valid_outputs(out, finished_outputs(out))
-    resume(folder, out, names, before)
+    resume(run_cli, folder, out, names, before)
 
 
 def test_sigkill_to_a_worker(tmp_path):
@@ -260,19 +258,20 @@ def test_work_queue_puts_busy_files_off_to_the_end():
     assert sorted(outcomes) == [0, 1, 2, 3]
 
 
-def test_a_run_removes_temporaries_killed_runs_left_in_its_output_folder(tmp_path):
+def test_a_run_removes_temporaries_killed_runs_left_in_its_output_folder(tmp_path, run_cli):
     """Temporary files of any jeanscv output in a folder the run writes to are removed,
     also those of outputs that are already finished (a killed --overwrite run left them);
-    another program's temporary file is left alone."""
+    another program's temporary file is left alone. (Both runs in this process: nothing
+    is killed here, and what a run finds on disk does not depend on which process runs it.)"""
     folder, out, names = make_folder(tmp_path)
-    done = subprocess.run([sys.executable, "-m", "jeanscv", folder, "-o", out, *SLOW], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
+    done = run_cli(folder, "-o", out, *SLOW)
+    assert done.exit_code == 0, done.stderr
     before = assert_valid_outputs(out, names)
     (out / names[1]).unlink()
     for name in (names[0], names[1], "notes.txt"):
         (out / f".{name}.0badf00d.tmp").write_bytes(b"half of it")
-    again = subprocess.run([sys.executable, "-m", "jeanscv", folder, "-o", out, *SLOW], capture_output=True, text=True)
-    assert again.returncode == 0, again.stderr
+    again = run_cli(folder, "-o", out, *SLOW)
+    assert again.exit_code == 0, again.stderr
     assert temporaries(out) == [".notes.txt.0badf00d.tmp"]
     (out / ".notes.txt.0badf00d.tmp").unlink()
     after = assert_valid_outputs(out, names)

@@ -207,16 +207,23 @@ def stop(server: subprocess.Popen, sig: int) -> tuple[int, float, str]:
     return code, time.monotonic() - began, server.stderr.read()
 
 
-def test_start_and_stop_30_times_without_an_abort(tmp_path):
+#: Starts in the loop below. With the two fixes it guards undone (the Lab-table thread a
+#: daemon again, the command ending through the interpreter instead of ``os._exit``),
+#: 35 of 40 such starts aborted (2026-11-27), so 10 miss it once in about 10^9 runs;
+#: each start costs a fresh process's imports, so 30 only cost time.
+STARTS = 10
+
+
+def test_start_and_stop_10_times_without_an_abort(tmp_path):
     """Ctrl-C and SIGTERM alternately, each as soon as the page answers (the warm-up
     threads still running): always 0 or 143, never an abort, in under 2 s."""
     seen = []
-    for round_ in range(30):
+    for round_ in range(STARTS):
         server, _ = start_server(tmp_path)
         sig = signal.SIGINT if round_ % 2 == 0 else signal.SIGTERM
         code, seconds, err = stop(server, sig)
         seen.append((code, round(seconds, 2), err.strip().splitlines()[-1:]))
-    expected = [0 if round_ % 2 == 0 else 143 for round_ in range(30)]
+    expected = [0 if round_ % 2 == 0 else 143 for round_ in range(STARTS)]
     assert [code for code, _, _ in seen] == expected, seen
     assert max(seconds for _, seconds, _ in seen) < 2.0, seen
     assert all(last == ["jeanscv serve: stopped"] for _, _, last in seen), seen
