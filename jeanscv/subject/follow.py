@@ -56,6 +56,12 @@ MIN_MARGIN = 48
 BAND = 0.06
 #: Most corners tracked per object.
 _CORNERS = 150
+#: Share of a key frame's corners that must still track (forward and back) for the motion
+#: to be measured from the key frame; fewer, and the previous frame becomes the key.
+KEY_KEEP = 0.5
+#: Most mean distance (working pixels) between the key frame's measure of the motion and
+#: the frame-to-frame one for the former to be taken; further, a new key.
+KEY_AGREE = 2.0
 #: Quantisation of the colour model: bits kept per RGB channel.
 _BITS = 4
 
@@ -70,6 +76,11 @@ class Followed:
     background: np.ndarray
     found_area: float
     lost: bool = False
+    # The key frame the motion is measured from (its grey copy and the object's corners
+    # on it, OpenCV's coordinates) and the motion from it to the last frame (3x3).
+    key_gray: np.ndarray | None = None
+    key_points: np.ndarray | None = None
+    key_to_last: np.ndarray | None = None
 
 
 @dataclass
@@ -196,33 +207,57 @@ class Follower:
         """The similarity that moves the object's corners (features inside it, off its edge)
         from the previous frame to where pyramidal Lucas-Kanade finds them in this one,
         starting from ``shift``, keeping those that track back to where they started; the
-        whole-pixel ``shift`` alone when too few track."""
+        whole-pixel ``shift`` alone when too few track. The similarity is then measured
+        again from the key frame (:meth:`_keyed`), so its errors do not add up frame
+        after frame."""
         dx, dy = shift
         shifted = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
         inner = cv2.erode(inside.view(np.uint8), np.ones((5, 5), np.uint8))
         corners = cv2.goodFeaturesToTrack(self._gray, _CORNERS, 0.01, 3, mask=inner)
         if corners is None or len(corners) < 6:
+            obj.key_gray = None
             return shifted
         start = corners.reshape(-1, 1, 2).astype(np.float32)
         guess = start + np.float32([dx, dy])
-        flags = cv2.OPTFLOW_USE_INITIAL_FLOW
-        moved, found, _ = cv2.calcOpticalFlowPyrLK(
-            self._gray, gray, start, guess.copy(), winSize=(15, 15), maxLevel=3, flags=flags
-        )
-        back, found_back, _ = cv2.calcOpticalFlowPyrLK(
-            gray, self._gray, moved, start.copy(), winSize=(15, 15), maxLevel=3, flags=flags
-        )
-        good = (
-            (found.ravel() == 1)
-            & (found_back.ravel() == 1)
-            & (np.linalg.norm((back - start).reshape(-1, 2), axis=1) < 1.0)
-        )
+        moved, good = _tracked_both_ways(self._gray, gray, start, guess, levels=3)
         if np.count_nonzero(good) < 6:
+            obj.key_gray = None
             return shifted
         matrix, _ = cv2.estimateAffinePartial2D(start[good], moved[good], method=cv2.RANSAC, ransacReprojThreshold=1.5)
         if matrix is None:
+            obj.key_gray = None
             return shifted
+        matrix = self._keyed(obj, matrix, start, gray)
         return _shifted(matrix, 0.5)  # OpenCV's pixel centres are at whole numbers, jeanscv's at +0.5
+
+    def _keyed(self, obj: Followed, step: np.ndarray, corners: np.ndarray, gray: np.ndarray) -> np.ndarray:
+        """The motion ``step`` (2x3, previous frame to this one, OpenCV's coordinates)
+        measured again from the object's key frame: its corners there tracked to this frame
+        from where ``step`` puts them. Frame-to-frame measures are each a hundredth of a
+        pixel off, which on bench.clips' moving clip added up to 9 px over 300 frames (the
+        jeans carried by them drifted as much). Where too few key corners track, or the
+        measure disagrees with ``step``, the previous frame (``corners``: the object's
+        corners on it) becomes the key, and ``step`` is the answer."""
+        step3 = np.vstack([step, [0.0, 0.0, 1.0]])
+        if obj.key_gray is not None and obj.key_gray.shape == gray.shape:
+            predicted = step3 @ obj.key_to_last
+            points = obj.key_points
+            guess = (points.reshape(-1, 2) @ predicted[:2, :2].T + predicted[:2, 2]).reshape(-1, 1, 2)
+            moved, good = _tracked_both_ways(obj.key_gray, gray, points, guess.astype(np.float32), levels=2)
+            if np.count_nonzero(good) >= max(6, KEY_KEEP * len(points)):
+                matrix, _ = cv2.estimateAffinePartial2D(
+                    points[good], moved[good], method=cv2.RANSAC, ransacReprojThreshold=1.5
+                )
+                if matrix is not None:
+                    flat = points.reshape(-1, 2)
+                    apart = flat @ (matrix[:, :2] - predicted[:2, :2]).T + (matrix[:, 2] - predicted[:2, 2])
+                    if float(np.linalg.norm(apart, axis=1).mean()) <= KEY_AGREE:
+                        keyed = np.vstack([matrix, [0.0, 0.0, 1.0]])
+                        frame = keyed @ np.linalg.inv(obj.key_to_last)
+                        obj.key_to_last = keyed
+                        return frame[:2]
+        obj.key_gray, obj.key_points, obj.key_to_last = self._gray, corners, step3
+        return step
 
     def _follow(self, obj: Followed, gray, index, taken) -> tuple[np.ndarray | None, np.ndarray | None]:
         motion = self._motion(obj, gray)
@@ -311,6 +346,23 @@ class Follower:
         to_full = np.array([[sx, 0, 0], [0, sy, 0], [0, 0, 1]])
         full = to_full @ np.vstack([motion, [0, 0, 1]]) @ to_small
         return full[:2]
+
+
+def _tracked_both_ways(
+    before: np.ndarray, after: np.ndarray, points: np.ndarray, guess: np.ndarray, levels: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``points`` (``(N, 1, 2)`` float32) of the grey image ``before`` tracked into ``after``
+    by pyramidal Lucas-Kanade from ``guess``: ``(where, good)``, ``good`` the points found
+    that track back to within a pixel of where they started."""
+    flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+    moved, found, _ = cv2.calcOpticalFlowPyrLK(
+        before, after, points, guess.copy(), winSize=(15, 15), maxLevel=levels, flags=flags
+    )
+    back, found_back, _ = cv2.calcOpticalFlowPyrLK(
+        after, before, moved, points.copy(), winSize=(15, 15), maxLevel=levels, flags=flags
+    )
+    apart = np.linalg.norm((back - points).reshape(-1, 2), axis=1)
+    return moved, (found.ravel() == 1) & (found_back.ravel() == 1) & (apart < 1.0)
 
 
 def _box(mask: np.ndarray) -> tuple[int, int, int, int] | None:
