@@ -1,5 +1,6 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
+import { hideClip, showClip } from "./clip.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
 import { post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -19,6 +20,7 @@ function leavePhoto() {
   stopAnimation();
   state.photo = null; // no click, render or download for the photo left
   state.result = null;
+  hideClip();
   drawOverlay();
   return state.generation;
 }
@@ -102,6 +104,7 @@ function start(answer, item) {
   }
   if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
+  showClip(answer);
   updateControls();
 }
 
