@@ -867,7 +867,7 @@ def test_a_gif_is_clicked_on_its_first_frame_played_and_downloaded(server, page,
         "the clip does not play",
     )
     if os.environ.get("JEANSCV_CLIP_SCREENSHOT"):  # docs/serve-clip.jpg
-        page.screenshot(path=os.environ["JEANSCV_CLIP_SCREENSHOT"], type="jpeg", quality=88)
+        page.screenshot(path=os.environ["JEANSCV_CLIP_SCREENSHOT"], type="jpeg", quality=88, full_page=True)
     saved = _download(page, "#dl-clip", tmp_path)
     assert saved.name == "walk.jeans.gif"
     with Image.open(saved) as gif:

@@ -105,7 +105,7 @@ function playClip(answer) {
   const link = $("dl-clip");
   link.href = `${answer.clip}?download=1`;
   link.download = answer.name;
-  link.textContent = `Download the ${answer.format.toUpperCase()}`;
+  link.textContent = `Download the clip (${answer.format.toUpperCase()})`;
   link.hidden = false;
 }
 
