@@ -534,3 +534,32 @@ def test_a_transparent_gif_keeps_its_transparency(tmp_path, run_cli):
     for frame, truth in zip(_decoded(tmp_path / "sticker.mp4"), masks):
         clear = ~cv2.dilate(truth.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)  # H.264's edge ringing
         assert frame.pixels.shape == (HEIGHT, WIDTH, 3) and frame.pixels[clear].min() >= 235
+
+
+def test_the_anchor_holds_a_rigid_subject_and_lets_go_of_a_new_shape():
+    """The jeans' anchor (run/clips._Track): carried by the motion while the followed mask
+    keeps the anchor frame's shape moved by it, full weight; gone when the mask's shape is
+    another (the subject sat down), and the jeans are then anchored afresh."""
+    from types import SimpleNamespace
+
+    from jeanscv.fitting.follow import FOLLOW_ANCHORING
+    from jeanscv.run.clips import _Track
+
+    mask = np.zeros((120, 160), bool)
+    mask[30:90, 40:80] = True
+    vertices = np.array([[50.0, 60.0], [70.0, 60.0], [70.0, 85.0], [50.0, 85.0]])
+    framing = SimpleNamespace(to_image=lambda v: np.asarray(v, float))
+    fitted = SimpleNamespace(
+        silhouette=SimpleNamespace(mask=mask, framing=framing), fit=SimpleNamespace(vertices=vertices)
+    )
+    track = _Track(fitted, fitted)
+    shift = np.array([[1.0, 0.0, 12.0], [0.0, 1.0, 5.0]])
+    moved = np.roll(np.roll(mask, 5, axis=0), 12, axis=1)
+    anchor, weight = track.anchoring(moved, shift)
+    assert weight == FOLLOW_ANCHORING and np.allclose(anchor, vertices + [12.0, 5.0])
+    anchor, weight = track.anchoring(moved, None)  # no motion measured: where it was
+    assert weight == FOLLOW_ANCHORING and np.allclose(anchor, vertices + [12.0, 5.0])
+    lying = np.zeros_like(mask)
+    lying[70:100, 30:110] = True  # the same animal lying down: IoU 0.14 with the anchor frame's
+    _, weight = track.anchoring(lying, None)
+    assert weight == 0.0

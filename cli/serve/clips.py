@@ -29,6 +29,7 @@ from jeanscv.io.clip import ClipLimits, ClipReader, clip_format, is_clip
 from jeanscv.io.write import on_white
 
 from . import engine
+from .answers import Refused, attachment, error
 
 #: Uploaded clips kept on disk for making (the oldest is removed for a newer one).
 CLIPS_KEPT = 4
@@ -196,8 +197,6 @@ class ClipEndpoints:
     async def make_clip(self, request: Request) -> Response:
         """The photo's clip with its jeans (clicks and options as for a render): made on the
         pool, kept as a result; its address plays in the page and downloads."""
-        from .app import Refused
-
         _, photo, clicks, render_options = await self.clicked(request)
         if photo.clip is None:
             raise Refused(422, f"{photo.name}: not a clip")
@@ -217,22 +216,18 @@ class ClipEndpoints:
         return JSONResponse({"clip": f"/api/clips/{clip_id}", "name": name, **summary})
 
     async def clip_progress(self, request: Request) -> Response:
-        from .app import _error
-
         photo = self.state.photos.get(request.path_params["photo"])
         if photo is None or photo.clip is None:
-            return _error(404, "no such clip (it may have expired: drop it again)")
+            return error(404, "no such clip (it may have expired: drop it again)")
         return JSONResponse(progress(photo))
 
     async def clip_file(self, request: Request) -> Response:
-        from .app import _attachment, _error
-
         made = self.state.results.get(request.path_params["clip"])
         if not isinstance(made, MadeClip):
-            return _error(404, "no such clip (it may have expired: make it again)")
+            return error(404, "no such clip (it may have expired: make it again)")
         headers = {"Cache-Control": "private, max-age=3600"}
         if request.query_params.get("download") == "1":
-            headers["Content-Disposition"] = _attachment(made.name)
+            headers["Content-Disposition"] = attachment(made.name)
         return Response(made.data, media_type=made.media, headers=headers)
 
 
