@@ -202,16 +202,8 @@ def _run_clip(job: Job, options: JeansOptions, targets: dict[str, Path], outcome
     if fmt not in CLIP_FORMATS:
         raise JeansError(f"an animation cannot be written as {image.suffix}: use --format gif, mp4, webp or png")
     _ensure_folder(image.parent)
-    decorate = None
-    if options.top or options.bottom or options.side_by_side:
-        from .extras import add_captions, side_by_side
-
-        def decorate(painted, original):
-            captioned = add_captions(painted, options.top, options.bottom)
-            return side_by_side(original, captioned) if options.side_by_side else captioned
-
     limits = ClipLimits(max_frames=options.max_frames)
-    report = write_jeans_clip(job.path, image, options, fmt=fmt, limits=limits, decorate=decorate)
+    report = write_jeans_clip(job.path, image, options, fmt=fmt, limits=limits, decorate=clip_decorate(options))
     outcome.written.append(str(image))
     frames = report["frames"]
     first = next((obj for obj in frames[0]["objects"] if obj is not None), None) if frames else None
@@ -230,6 +222,20 @@ def _run_clip(job: Job, options: JeansOptions, targets: dict[str, Path], outcome
         _ensure_folder(targets["json"].parent)
         atomic_write_bytes(targets["json"], text.encode("utf-8"))
         outcome.written.append(str(targets["json"]))
+
+
+def clip_decorate(options):
+    """``decorate(painted, original)`` for :func:`jeanscv.run.clips.write_jeans_clip`: the
+    captions and side by side of ``options`` on every frame (None when there are none)."""
+    if not (options.top or options.bottom or options.side_by_side):
+        return None
+    from .extras import add_captions, side_by_side
+
+    def decorate(painted, original):
+        captioned = add_captions(painted, options.top, options.bottom)
+        return side_by_side(original, captioned) if options.side_by_side else captioned
+
+    return decorate
 
 
 def _object_info(obj) -> dict:

@@ -8,6 +8,7 @@ import json
 from fractions import Fraction
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from PIL import Image
@@ -283,6 +284,23 @@ def test_still_clip_jeans_hold_still():
     assert len(postures) == 1
 
 
+def test_the_jeans_stay_on_a_subject_that_moves_across_the_frame():
+    """The jeans follow the subject's motion: on every frame within 2 px of the first
+    frame's jeans moved as the subject moved (a pure translation of 30 px). Measured
+    frame to frame only, the motion's small errors added up to 5.7 px by the last frame."""
+    from jeanscv.run.clips import apply_jeans_to_clip
+
+    sprite, ground, motion = _moving(frames=16, travel=(30.0, 0.0), turn=0.0, grow=0.0)
+    made = _frames(sprite, ground, motion)
+    results = list(apply_jeans_to_clip((p for p, _, _ in made), points=[sc.inner_point(made[0][1])], fps=10.0))
+    first = results[0].objects[0].silhouette.framing.to_image(results[0].objects[0].fit.vertices)
+    for result, (_, _, matrix) in zip(results, made):
+        obj = result.objects[0]
+        glued = sc.carried(first, made[0][2], matrix)  # the first jeans moved with the subject
+        apart = np.linalg.norm(obj.silhouette.framing.to_image(obj.fit.vertices) - glued, axis=1)
+        assert apart.mean() <= 2.0, (result.index, apart)
+
+
 def test_scene_cut_finds_the_subject_again():
     from jeanscv.run.clips import apply_jeans_to_clip
 
@@ -477,3 +495,71 @@ def test_output_names_are_decided_from_the_input_name():
         ("moving.png", None): ".png",
     }
     assert {case: output_extension(*case, clips=True) for case in cases} == cases
+
+
+def _transparent_gif(path: Path, frames: int = 5) -> list:
+    """A GIF of the textured animal moving over clear pixels (a sticker): its true masks."""
+    sprite, ground, motion = _moving(frames=frames)
+    made = _frames(sprite, np.zeros_like(ground), motion)
+    images = [Image.fromarray(np.dstack([p, np.where(m, 255, 0).astype(np.uint8)])) for p, m, _ in made]
+    images[0].save(path, save_all=True, append_images=images[1:], duration=100, loop=0, disposal=2)
+    return [m for _, m, _ in made]
+
+
+def test_a_transparent_gif_keeps_its_transparency(tmp_path, run_cli):
+    from jeanscv.options import JeansOptions
+    from jeanscv.run.clips import write_jeans_clip
+
+    masks = _transparent_gif(tmp_path / "sticker.gif")
+    with ClipReader(tmp_path / "sticker.gif") as reader:
+        decoded = list(reader.frames())
+        assert reader.info.alpha and all(f.pixels.shape == (HEIGHT, WIDTH, 4) for f in decoded)
+    assert all(np.array_equal(f.pixels[..., 3] >= 128, m) for f, m in zip(decoded, masks))
+    result = run_cli(tmp_path / "sticker.gif", *FAST, "-q")  # automatic: the alpha is the subject
+    assert result.exit_code == 0, result.stderr
+    with Image.open(tmp_path / "sticker.jeans.gif") as im:
+        assert im.n_frames == 5
+        for index, truth in enumerate(masks):
+            im.seek(index)
+            rgba = np.asarray(im.convert("RGBA"))
+            # Clear where the input is (the jeans stay on the subject: their anti-aliased edge
+            # may take a pixel beside it), and no trail of the frames before (each disposed of).
+            opaque = rgba[..., 3] >= 128
+            assert (truth & ~opaque).sum() == 0 and opaque.sum() > 1000, index
+            assert (opaque & ~cv2.dilate(truth.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)).sum() == 0
+            inside = rgba[truth][:, :3].astype(int)
+            assert (np.abs(inside - decoded[index].pixels[..., :3][truth]).sum(axis=1) > 60).sum() > 200  # jeans
+    # A format without transparency shows the clear pixels on white, on every frame.
+    write_jeans_clip(tmp_path / "sticker.gif", tmp_path / "sticker.mp4", JeansOptions(iterations=4, starts=1))
+    for frame, truth in zip(_decoded(tmp_path / "sticker.mp4"), masks):
+        clear = ~cv2.dilate(truth.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)  # H.264's edge ringing
+        assert frame.pixels.shape == (HEIGHT, WIDTH, 3) and frame.pixels[clear].min() >= 235
+
+
+def test_the_anchor_holds_a_rigid_subject_and_lets_go_of_a_new_shape():
+    """The jeans' anchor (run/clips._Track): carried by the motion while the followed mask
+    keeps the anchor frame's shape moved by it, full weight; gone when the mask's shape is
+    another (the subject sat down), and the jeans are then anchored afresh."""
+    from types import SimpleNamespace
+
+    from jeanscv.fitting.follow import FOLLOW_ANCHORING
+    from jeanscv.run.clips import _Track
+
+    mask = np.zeros((120, 160), bool)
+    mask[30:90, 40:80] = True
+    vertices = np.array([[50.0, 60.0], [70.0, 60.0], [70.0, 85.0], [50.0, 85.0]])
+    framing = SimpleNamespace(to_image=lambda v: np.asarray(v, float))
+    fitted = SimpleNamespace(
+        silhouette=SimpleNamespace(mask=mask, framing=framing), fit=SimpleNamespace(vertices=vertices)
+    )
+    track = _Track(fitted, fitted)
+    shift = np.array([[1.0, 0.0, 12.0], [0.0, 1.0, 5.0]])
+    moved = np.roll(np.roll(mask, 5, axis=0), 12, axis=1)
+    anchor, weight = track.anchoring(moved, shift)
+    assert weight == FOLLOW_ANCHORING and np.allclose(anchor, vertices + [12.0, 5.0])
+    anchor, weight = track.anchoring(moved, None)  # no motion measured: where it was
+    assert weight == FOLLOW_ANCHORING and np.allclose(anchor, vertices + [12.0, 5.0])
+    lying = np.zeros_like(mask)
+    lying[70:100, 30:110] = True  # the same animal lying down: IoU 0.14 with the anchor frame's
+    _, weight = track.anchoring(lying, None)
+    assert weight == 0.0

@@ -113,16 +113,21 @@ def page(browser):
 def _drop_photo(page, image: np.ndarray, name: str = "pets.png", wait: bool = True) -> None:
     """Drop ``image`` on the page as ``name``, as a person drags it from their files,
     and (``wait``) wait until the page shows its result."""
-    data = base64.b64encode(png_bytes(image)).decode()
+    _drop_file(page, png_bytes(image), name, "image/png", wait)
+
+
+def _drop_file(page, data: bytes, name: str, media: str, wait: bool = True) -> None:
+    """Drop a file of ``data`` on the page as ``name`` of type ``media``, and (``wait``)
+    wait until the page shows its result."""
     page.evaluate(
-        """async ([data, name]) => {
+        """async ([data, name, media]) => {
             const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
             const transfer = new DataTransfer();
-            transfer.items.add(new File([bytes], name, { type: "image/png" }));
+            transfer.items.add(new File([bytes], name, { type: media }));
             document.getElementById("drop").dispatchEvent(
                 new DragEvent("drop", { dataTransfer: transfer, bubbles: true, cancelable: true }));
         }""",
-        [data, name],
+        [base64.b64encode(data).decode(), name, media],
     )
     if wait:
         _wait_for_result(page, name)
@@ -1078,4 +1083,56 @@ def test_the_main_flow_by_keyboard_alone(server, page, tmp_path):
     with page.expect_download(timeout=60_000) as download:
         page.keyboard.press("Enter")
     assert download.value.suggested_filename == "pets.meme.png"
+    assert page.problems == []
+
+
+def test_a_gif_is_clicked_on_its_first_frame_played_and_downloaded(server, page, tmp_path):
+    """Issue 33: a GIF dropped on the page shows its first frame, which takes the clicks as
+    a photo does; "Make the clip" makes it with the jeans following the animal, says how
+    far it is, plays it in the page (animated) and downloads it. With
+    ``JEANSCV_CLIP_SCREENSHOT=PATH.jpg`` it saves the page playing the clip there."""
+    from test_serve_clips import walking
+
+    from jeanscv.io.clip import clip_bytes
+    from testkit.synthetic_clips import inner_point
+
+    frames, masks = walking(frames=5)
+    answers = []
+    page.on("response", lambda r: r.request.method == "POST" and r.ok and answers.append((r.url, r.json())))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    _drop_file(page, clip_bytes(frames, "gif", fps=10.0), "walk.gif", "image/gif")
+    assert page.locator("#clip-group").is_visible() and page.locator("#clip-figure").is_hidden()
+    assert "5 frames" in page.locator("#clip-about").text_content()
+    _click_photo(page, *inner_point(masks[0]))  # on frame 0, as on a photo
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
+    page.click("#make-clip")
+    page.wait_for_function(
+        """() => { const img = document.getElementById('clip-image');
+                   return !img.hidden && img.complete && img.naturalWidth > 0; }""",
+        timeout=90_000,
+    )
+    _wait_until(page, lambda: any(url.endswith("/clip") for url, _ in answers), 10, "no answer to the clip")
+    made = next(answer for url, answer in answers if url.endswith("/clip"))
+    assert made["frames"] == 5 and made["name"] == "walk.jeans.gif"
+    assert page.locator("#clip-figure").is_visible() and page.locator("#clip-progress").is_hidden()
+    assert page.locator("#status").text_content() == "walk.jeans.gif: 5 frames."
+    # It plays: the picture shown changes while the page is looked at.
+    shots = [page.locator("#clip-image").screenshot()]
+    _wait_until(
+        page,
+        lambda: shots.append(page.locator("#clip-image").screenshot()) or len(set(shots)) > 1,
+        10,
+        "the clip does not play",
+    )
+    if os.environ.get("JEANSCV_CLIP_SCREENSHOT"):  # docs/serve-clip.jpg
+        page.screenshot(path=os.environ["JEANSCV_CLIP_SCREENSHOT"], type="jpeg", quality=88, full_page=True)
+    saved = _download(page, "#dl-clip", tmp_path)
+    assert saved.name == "walk.jeans.gif"
+    with Image.open(saved) as gif:
+        assert gif.n_frames == 5 and gif.size == (192, 144)
+        gif.seek(4)
+        last = np.asarray(gif.convert("RGB")).astype(int)
+    changed = np.abs(last - frames[4]).max(axis=-1) > 60
+    assert changed[masks[4]].mean() > 0.05 and changed[~masks[4]].mean() < 0.01  # the jeans went with it
     assert page.problems == []

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
 import stat
 import tempfile
@@ -27,7 +26,10 @@ from starlette.routing import Route
 from jeanscv.errors import JeansError
 from jeanscv.options import SUBJECTS
 
-from . import engine
+from . import clips, engine
+from .answers import Refused, client_text  # noqa: F401 - client_text: the tests' name for it
+from .answers import attachment as _attachment
+from .answers import error as _error
 from .guard import UNEXPECTED, BodyRefused, Guard, TooLarge, log_unexpected, own_names
 from .store import Busy, Pool, Stopping, Store, TooSlow
 
@@ -59,6 +61,7 @@ _SCRIPTS = (
     "boxes.js",
     "zoom.js",
     "cursor.js",
+    "clip.js",
 )
 _STATIC = (
     {"/": ("index.html", "text/html; charset=utf-8")}
@@ -90,6 +93,8 @@ class Config:
     body_timeout: float = 30.0
     #: Log tracebacks of unexpected errors to the terminal (never to the client).
     debug: bool = False
+    #: What the page takes as a clip (frames, seconds, pixels a frame).
+    clip_caps: clips.ClipCaps = field(default_factory=clips.ClipCaps)
     extra_names: tuple[str, ...] = field(default_factory=tuple)
 
 
@@ -122,6 +127,7 @@ class State:
         # Folder items (by name) whose subject may be the wrong thing, once known: their
         # output was made, or they were opened, here (True/False; clicks make it False).
         self.unsure: dict[str, bool] = {}
+        self.clip_files = clips.ClipFiles()
 
     def open(self) -> None:
         self.tmp = Path(tempfile.mkdtemp(prefix="jeanscv-serve-"))
@@ -137,29 +143,6 @@ class State:
             shutil.rmtree(self.tmp, ignore_errors=True)
 
 
-class Refused(Exception):
-    """Answer the request with ``{"error": reason}`` and ``status`` (raised anywhere in a
-    handler; the one way the server says no)."""
-
-    def __init__(self, status: int, reason: str, headers: dict | None = None):
-        super().__init__(reason)
-        self.status, self.reason, self.headers = status, reason, headers
-
-
-def _error(status: int, reason: str, **headers) -> JSONResponse:
-    return JSONResponse({"error": client_text(reason)}, status_code=status, headers=headers or None)
-
-
-#: An absolute file path inside a message: shown to a client as its last part only.
-_ABSOLUTE_PATH = re.compile(r"(?<![\w.:/])/(?:[^\s'\"/<>]+/)+([^\s'\"/<>]*)")
-
-
-def client_text(reason: str) -> str:
-    """A reason fit for a web client: one line, short, no absolute path of this machine."""
-    text = " ".join(str(reason).split())
-    return _ABSOLUTE_PATH.sub(lambda match: match.group(1) or "(a folder)", text)[:500]
-
-
 def _safe_name(filename: str | None) -> str:
     """A display name from the client's file name: its last part, printable, short.
     Only ever shown and used to name downloads, never opened."""
@@ -171,11 +154,12 @@ def _safe_name(filename: str | None) -> str:
 def _suffix(name: str) -> str:
     """The temporary copy's extension: the client's, if it is one jeanscv reads (RAW
     files are recognised by it), else none (Pillow then tells the format by content)."""
+    from jeanscv.io.clip import CLIP_EXTENSIONS
     from jeanscv.io.image import SUPPORTED_EXTENSIONS
     from jeanscv.io.svg import SVG_EXTENSIONS
 
     suffix = Path(name).suffix.lower()
-    return suffix if suffix in SUPPORTED_EXTENSIONS | SVG_EXTENSIONS else ".img"
+    return suffix if suffix in SUPPORTED_EXTENSIONS | SVG_EXTENSIONS | CLIP_EXTENSIONS else ".img"
 
 
 async def _json_object(request: Request) -> dict:
@@ -190,7 +174,7 @@ async def _json_object(request: Request) -> dict:
     return data
 
 
-class _Api:
+class _Api(clips.ClipEndpoints):
     """The endpoints of one server (a method a route) and the jobs they give its pool,
     over the server's :class:`State`."""
 
@@ -260,13 +244,15 @@ class _Api:
             "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
         }
 
-    def open_and_render(self, path: Path, name: str, clicks_for, subject: str = "auto") -> dict:
-        photo = engine.open_photo(path, name, self.config.max_pixels, subject)
+    def open_and_render(self, path: Path, name: str, clicks_for, subject: str = "auto", photo=None) -> dict:
+        photo = photo or engine.open_photo(path, name, self.config.max_pixels, subject)
         photo_id = self.state.photos.put(photo, photo.nbytes)
         clicks = clicks_for(photo) if clicks_for else None
         answer = self.render(photo_id, photo, clicks, engine.RenderOptions())
         if clicks is not None:
             answer["saved_clicks"] = [obj.to_json() for obj in clicks.objects]
+        if photo.clip is not None:
+            answer["clip"] = photo.clip.summary()
         if photo.kind == "photo":
             # The click session (about half a second) is made while the person looks,
             # on a worker that no request is waiting for.
@@ -276,16 +262,23 @@ class _Api:
 
     def upload_job(self, upload, name: str, subject: str) -> dict:
         fd, temporary = tempfile.mkstemp(suffix=_suffix(name), dir=self.state.tmp)
+        kept = False
         try:
             with os.fdopen(fd, "wb") as copy:
                 upload.file.seek(0)
                 shutil.copyfileobj(upload.file, copy, 1 << 20)
-            return self.open_and_render(Path(temporary), name, None, subject)
+            # A clip is kept for making; its first frame is the photo clicked on.
+            photo = clips.open_clip(Path(temporary), name, self.config.clip_caps, self.config.max_pixels, subject)
+            if photo is not None:
+                self.state.clip_files.keep(Path(temporary))
+                kept = True
+            return self.open_and_render(Path(temporary), name, None, subject, photo)
         finally:
-            try:
-                os.unlink(temporary)
-            except OSError:
-                pass  # the server stopped and removed its temporary folder
+            if not kept:
+                try:
+                    os.unlink(temporary)
+                except OSError:
+                    pass  # the server stopped and removed its temporary folder
 
     async def upload(self, request: Request) -> Response:
         try:
@@ -306,24 +299,30 @@ class _Api:
         finally:
             await form.close()
 
-    async def rerender(self, request: Request) -> Response:
+    async def clicked(self, request: Request) -> tuple:
+        """``(photo id, photo, clicks, render options)`` of a request on a photo (its URL's
+        photo, its JSON body's ``objects`` and ``options``); :class:`Refused` (404, 422)."""
         photo_id = request.path_params["photo"]
         photo = self.state.photos.get(photo_id)
         if photo is None:
-            return _error(404, "no such photo (it may have expired: drop it again)")
+            raise Refused(404, "no such photo (it may have expired: drop it again)")
         try:
             data = await _json_object(request)
             render_options = engine.RenderOptions.from_json(data.get("options"))
             clicks = engine.clicks_from_json(data.get("objects"), photo.size)
         except JeansError as exc:
-            return _error(422, f"{photo.name}: {exc}")
+            raise Refused(422, f"{photo.name}: {exc}") from None
+        return photo_id, photo, clicks, render_options
+
+    async def rerender(self, request: Request) -> Response:
+        photo_id, photo, clicks, render_options = await self.clicked(request)
         answer = await self.job(photo.name, self.render, photo_id, photo, clicks, render_options)
         return JSONResponse({"photo": photo_id, "name": photo.name, "kind": photo.kind, **answer})
 
     async def result_file(self, request: Request) -> Response:
         result = self.state.results.get(request.path_params["result"])
         kind = request.path_params["kind"]
-        if result is None:
+        if not isinstance(result, Result):
             return _error(404, "no such result (it may have expired: render it again)")
         if kind == "preview":
             return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
@@ -357,8 +356,7 @@ class _Api:
         media = _MEDIA.get(Path(filename).suffix.lower(), "application/octet-stream")
         if filename.endswith(".clicks.json"):
             media = "application/json"
-        ascii_name = "".join(c if c.isascii() and c.isprintable() and c not in '"\\' else "_" for c in filename)
-        return Response(data, media_type=media, headers={"Content-Disposition": f'attachment; filename="{ascii_name}"'})
+        return Response(data, media_type=media, headers={"Content-Disposition": _attachment(filename)})
 
     async def original(self, request: Request) -> Response:
         photo = self.state.photos.get(request.path_params["photo"])
@@ -529,6 +527,9 @@ def create_app(config: Config) -> Guard:
         Route("/api/photos/{photo}/render", api.rerender, methods=["POST"]),
         Route("/api/photos/{photo}/original", api.original),
         Route("/api/photos/{photo}/hover", api.hover),
+        Route("/api/photos/{photo}/clip", api.make_clip, methods=["POST"]),
+        Route("/api/photos/{photo}/clip/progress", api.clip_progress),
+        Route("/api/clips/{clip}", api.clip_file),
         Route("/api/results/{result}/{kind}", api.result_file),
         Route("/api/folder", api.folder_list),
         Route("/api/folder/{item:int}/thumb", api.folder_thumb, methods=["POST"]),

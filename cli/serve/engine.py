@@ -181,6 +181,7 @@ class Photo:
     lock: threading.Lock = field(default_factory=threading.Lock)
     hover_lock: threading.Lock = field(default_factory=threading.Lock)  # one hover map made at a time
     fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
+    clip: object | None = None  # a clip's ClipSource (cli/serve/clips.py): this is its first frame
 
     @property
     def scale(self) -> float:
@@ -236,9 +237,10 @@ def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
     return cv2.resize(picture, target, interpolation=cv2.INTER_AREA)
 
 
-def open_photo(path: Path, name: str, max_pixels: int, subject: str = "auto") -> Photo:
-    """Decode and segment a file (an upload's temporary copy, or a folder's photo);
-    ``subject``: what automatic finding looks for (``--subject``).
+def open_photo(path: Path | np.ndarray, name: str, max_pixels: int, subject: str = "auto") -> Photo:
+    """Decode and segment a file (an upload's temporary copy, or a folder's photo) or
+    decoded pixels (a clip's first frame); ``subject``: what automatic finding looks for
+    (``--subject``).
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """

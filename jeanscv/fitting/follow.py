@@ -34,6 +34,10 @@ FOLLOW_STEPS = 4
 FOLLOW_LEARNING_RATE = 0.25
 #: Weight of the start (the motion-carried previous garment) against the new fit.
 FOLLOW_STIFFNESS = 6.0
+#: Weight of the anchor (the garment where it was found, moved with the subject since):
+#: on bench.clips' 300-frame clips 6 px of drift and more became under 2 px (see
+#: docs/clips.md); the caller lowers it where the subject changes shape.
+FOLLOW_ANCHORING = 3.0
 #: A step that turns the garment more than this (degrees) is a posture change: refused.
 MAX_TURN = 20.0
 
@@ -48,9 +52,13 @@ def refit(
     device: str = "cpu",
     steps: int = FOLLOW_STEPS,
     stiffness: float = FOLLOW_STIFFNESS,
+    anchor: np.ndarray | None = None,
+    anchoring: float = FOLLOW_ANCHORING,
 ) -> tuple[np.ndarray, float, dict[str, float]]:
-    """Settle ``start`` (``(N, 2)`` canvas pixels) on the 256x256 ``silhouette``:
-    ``(vertices, objective, terms)``, vertices in canvas pixels."""
+    """Settle ``start`` (``(N, 2)`` canvas pixels) on the 256x256 ``silhouette``, pulled
+    towards ``start`` by ``stiffness`` and towards ``anchor`` (``(N, 2)`` canvas pixels,
+    none when None) by ``anchoring``: ``(vertices, objective, terms)``, vertices in canvas
+    pixels."""
     s = as_silhouette_array(silhouette)
     start = np.asarray(start, dtype=np.float64)
     vertices = start
@@ -60,7 +68,12 @@ def refit(
         totals, _ = descend(optimizer, s, steps, _half_width(s))
         fitted = optimizer.params[0] * CANVAS_SIZE
         if len(totals) == steps and np.isfinite(fitted).all():
-            vertices = (fitted + stiffness * start) / (1.0 + stiffness)
+            if anchor is None:
+                anchoring = 0.0
+                anchor = start
+            vertices = (fitted + stiffness * start + anchoring * np.asarray(anchor, np.float64)) / (
+                1.0 + stiffness + anchoring
+            )
     if abs(tilt_degrees(vertices, garment) - tilt_degrees(start, garment)) > MAX_TURN:
         vertices = start
     evaluate = make_objective(backend, garment, preset.inter_pairs, preset.weights, device)
@@ -68,4 +81,4 @@ def refit(
     return vertices, float(totals[0]), {name: float(terms[name][0]) for name in TERM_NAMES}
 
 
-__all__ = ["FOLLOW_STEPS", "FOLLOW_STIFFNESS", "refit"]
+__all__ = ["FOLLOW_ANCHORING", "FOLLOW_STEPS", "FOLLOW_STIFFNESS", "refit"]

@@ -27,6 +27,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 
 from .clip_names import CLIP_EXTENSIONS, CLIP_FORMATS, MAYBE_ANIMATED_EXTENSIONS, clip_format, is_clip_path
+from .write import on_white
 
 
 @dataclass(frozen=True)
@@ -42,8 +43,9 @@ class ClipLimits:
 
 @dataclass(frozen=True)
 class ClipFrame:
-    """One decoded frame: ``pixels`` ``(H, W, 3)`` uint8 RGB upright, its ``index`` from 0,
-    and its start ``time`` and ``duration`` in seconds."""
+    """One decoded frame: ``pixels`` ``(H, W, 3)`` uint8 RGB upright (``(H, W, 4)`` RGBA
+    in a clip with transparency: :attr:`ClipInfo.alpha`), its ``index`` from 0, and its
+    start ``time`` and ``duration`` in seconds."""
 
     index: int
     time: float
@@ -57,7 +59,8 @@ class ClipInfo:
     None when unknown), ``frames`` and ``seconds`` (None when the header does not say),
     ``rotation`` (degrees counter-clockwise applied to make frames upright), ``loop``
     (GIF/WebP/PNG: 0 forever, N times, None: play once), ``audio`` (an audio stream is
-    present) and the container ``format``."""
+    present), the container ``format``, and ``alpha``: the first frame has transparent
+    pixels, so every frame is RGBA (known once the first frame is decoded)."""
 
     size: tuple[int, int]
     fps: float | None
@@ -67,6 +70,7 @@ class ClipInfo:
     loop: int | None = 0
     audio: bool = False
     format: str = ""
+    alpha: bool = False
     extra: dict = field(default_factory=dict)
 
 
@@ -96,13 +100,11 @@ def _rotated(pixels: np.ndarray, rotation: int) -> np.ndarray:
     return np.ascontiguousarray(np.rot90(pixels, turns)) if turns else pixels
 
 
-def _flatten(pixels: np.ndarray) -> np.ndarray:
-    """RGBA -> RGB over white (a GIF's transparent pixels show as white, not as noise)."""
-    if pixels.shape[2] == 3:
+def _rgba(pixels: np.ndarray) -> np.ndarray:
+    """RGB -> RGBA, opaque; RGBA as it is."""
+    if pixels.shape[2] == 4:
         return pixels
-    alpha = pixels[..., 3:].astype(np.uint16)
-    rgb = (pixels[..., :3].astype(np.uint16) * alpha + 255 * (255 - alpha) + 127) // 255
-    return rgb.astype(np.uint8)
+    return np.dstack([pixels, np.full(pixels.shape[:2], 255, np.uint8)])
 
 
 def _reason(exc: BaseException) -> str:
@@ -233,6 +235,9 @@ class ClipReader:
             if count > self.limits.max_frames:
                 raise JeansError(f"clip has more than {self.limits.max_frames} frames (--max-frames)")
             time, duration, pixels = item
+            if count == 1:  # a clip with transparency is one whose first frame has some
+                self.info.alpha = pixels.shape[2] == 4 and bool((pixels[..., 3] < 255).any())
+            pixels = _rgba(pixels) if self.info.alpha else on_white(pixels)
             if time > self.limits.max_seconds:
                 raise JeansError(f"clip lasts more than {self.limits.max_seconds:g} s")
             if previous is not None:
@@ -267,7 +272,7 @@ class ClipReader:
                 if rotation != self.info.rotation:
                     self.info.rotation = rotation
                     self.info.size = (frame.height, frame.width) if rotation % 180 else (frame.width, frame.height)
-                yield time, duration, _flatten(_rotated(pixels, rotation))
+                yield time, duration, _rotated(pixels, rotation)
 
     def _pillow_frames(self) -> Iterator[tuple[float, float, np.ndarray]]:
         image = self._pillow
@@ -276,8 +281,7 @@ class ClipReader:
             image.seek(index)
             image.load()
             duration = float(image.info.get("duration") or 100) / 1000
-            pixels = np.asarray(image.convert("RGBA"))
-            yield time, duration, _flatten(pixels)
+            yield time, duration, np.asarray(image.convert("RGBA"))
             time += duration
 
     def take_audio(self) -> list:
@@ -321,7 +325,8 @@ def _gif_loop(file: BinaryIO) -> int | None:
 
 
 def iter_frames(frames, fps: float = 25.0) -> Iterator[ClipFrame]:
-    """``ClipFrame`` s from arrays (``(H, W, 3)`` uint8, or already frames), ``fps`` apart."""
+    """``ClipFrame`` s from arrays (``(H, W, 3)`` uint8 RGB or ``(H, W, 4)`` RGBA, kept
+    as they are, or already frames), ``fps`` apart."""
     for index, item in enumerate(frames):
         if isinstance(item, ClipFrame):
             yield item
@@ -329,7 +334,7 @@ def iter_frames(frames, fps: float = 25.0) -> Iterator[ClipFrame]:
         pixels = np.asarray(item)
         if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in (3, 4):
             raise JeansError(f"frame {index} must be an (H, W, 3) uint8 array, got {pixels.dtype} {pixels.shape}")
-        yield ClipFrame(index, index / fps, 1.0 / fps, _flatten(pixels))
+        yield ClipFrame(index, index / fps, 1.0 / fps, pixels)
 
 
 # ------------------------------------------------------------------------- writing
@@ -342,7 +347,9 @@ class ClipWriter:
     MP4: H.264 (yuv420p, sizes made even by repeating the last row or column), ``audio``
     (a reader's audio stream) copied packet by packet when the container takes it. GIF: a
     palette per frame, ``loop`` kept (0 forever, N times, None once). Frame times are
-    kept, so a variable frame rate stays variable.
+    kept, so a variable frame rate stays variable. RGBA frames keep their transparency in
+    GIF (pixels under half opaque are the palette's clear colour), WebP and PNG when the
+    first frame is RGBA; MP4, and frames after an RGB first one, show them on white.
     """
 
     def __init__(self, file: BinaryIO, fmt: str, *, fps: float | None = None, loop: int | None = 0, audio=None) -> None:
@@ -364,8 +371,9 @@ class ClipWriter:
         self._audio_out = None
         self._last_pts = -1
         self._size: tuple[int, int] | None = None
+        self._alpha = False  # the stream keeps transparency
 
-    def _start(self, width: int, height: int) -> None:
+    def _start(self, width: int, height: int, alpha: bool = False) -> None:
         import av
 
         if self.fmt == "mp4":
@@ -385,6 +393,9 @@ class ClipWriter:
             codec, pix_fmt = {"gif": ("gif", "pal8"), "webp": ("libwebp_anim", "yuv420p"), "png": ("apng", "rgb24")}[
                 self.fmt
             ]
+            self._alpha = alpha
+            if alpha and self.fmt != "gif":
+                pix_fmt = {"webp": "yuva420p", "png": "rgba"}[self.fmt]
             self._time_base = Fraction(1, 100) if self.fmt == "gif" else Fraction(1, 1000)
             stream = self._container.add_stream(codec, rate=Fraction(1, self._time_base))
             stream.pix_fmt = pix_fmt
@@ -401,9 +412,10 @@ class ClipWriter:
         ``duration`` (the last frame's length; later frames start where it ends)."""
         import av
 
-        pixels = _flatten(np.asarray(pixels))
+        pixels = np.asarray(pixels)
         if self._stream is None:
-            self._start(pixels.shape[1], pixels.shape[0])
+            self._start(pixels.shape[1], pixels.shape[0], pixels.shape[2] == 4)
+        pixels = _rgba(pixels) if self._alpha else on_white(pixels)
         width, height = self._size
         if pixels.shape[:2] != (height, width):
             pixels = _padded(pixels, width, height)
@@ -426,16 +438,27 @@ class ClipWriter:
         import av
 
         if self.fmt != "gif":
-            return av.VideoFrame.from_ndarray(np.ascontiguousarray(pixels), format="rgb24")
+            layout = "rgba" if pixels.shape[2] == 4 else "rgb24"
+            return av.VideoFrame.from_ndarray(np.ascontiguousarray(pixels), format=layout)
         from PIL import Image
 
-        # A palette of this frame's own colours (GIF allows one per frame).
-        quantised = Image.fromarray(pixels).quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
-        palette = np.asarray(quantised.getpalette()[:768], np.uint8).reshape(-1, 3)
+        # A palette of this frame's own colours (GIF allows one per frame); with
+        # transparency, 255 of them and the last entry the clear one (FFmpeg's GIF encoder
+        # writes an entry of alpha 0 as the frame's transparent index, disposal 'restore
+        # to background', so a moving subject leaves no trail).
+        clear = pixels[..., 3] < 128 if pixels.shape[2] == 4 else None
+        colours = 255 if clear is not None else 256
+        rgb = np.ascontiguousarray(pixels[..., :3])
+        quantised = Image.fromarray(rgb).quantize(colours, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+        palette = np.asarray(quantised.getpalette()[: 3 * colours], np.uint8).reshape(-1, 3)
         argb = np.zeros((256, 4), np.uint8)
         argb[:, 0] = 255
         argb[: len(palette), 1:] = palette
-        return av.VideoFrame.from_ndarray((np.asarray(quantised), argb), format="pal8")
+        indices = np.asarray(quantised)
+        if clear is not None:
+            argb[255] = 0
+            indices = np.where(clear, np.uint8(255), indices)
+        return av.VideoFrame.from_ndarray((np.ascontiguousarray(indices), argb), format="pal8")
 
     def copy_audio(self, packets: list) -> None:
         """Mux a reader's audio packets (nothing when the output carries no audio)."""

@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import JeansError
 from ..geometry import apply_affine
 from ..io.clip import ClipFrame, ClipLimits, ClipReader, iter_frames
+from ..io.write import on_white
 from ..options import JeansOptions
 from ..report import FittedObject
 from ..subject.silhouettes import Silhouette
@@ -34,6 +35,14 @@ LOOK_AGAIN_SECONDS = 1.0
 #: Most Bhattacharyya distance between a found object's colours and the lost one's for
 #: the found one to be taken as the lost subject come back.
 SAME_SUBJECT = 0.6
+#: Shape agreement (IoU of the followed mask with the anchor frame's mask carried by the
+#: motion since) at and above which the jeans are fully anchored: what the follower's edge
+#: re-decision changes on a rigid subject (0.9 and more on bench.clips' clips) is taken as
+#: segmentation noise, not as the subject's shape.
+SHAPE_KEPT = 0.85
+#: ... and at or below which the subject has changed shape (sat down, turned): the anchor
+#: fades out between the two, and below this the jeans are anchored afresh where they are.
+SHAPE_CHANGED = 0.7
 
 
 @dataclass
@@ -83,10 +92,48 @@ class ClipFrameResult:
 
 @dataclass
 class _Track:
-    """One followed object: what its last frame wore (None once lost)."""
+    """One followed object: what its last frame wore (None once lost), and its anchor: the
+    jeans and mask of the frame they were anchored on (image pixels) and the subject's
+    motion since (2x3)."""
 
     fitted: FittedObject | None
     first: FittedObject  # as found: its fit's preset and garment serve every frame
+    anchor: np.ndarray = None  # type: ignore[assignment]
+    reference: np.ndarray = None  # type: ignore[assignment]
+    moved: np.ndarray = dataclasses.field(default_factory=lambda: np.eye(3)[:2])
+
+    def __post_init__(self) -> None:
+        if self.anchor is None and self.fitted is not None:
+            self.anchor_on(self.fitted)
+
+    def anchor_on(self, fitted: FittedObject) -> None:
+        """Anchor the jeans where ``fitted`` has them."""
+        self.anchor = fitted.silhouette.framing.to_image(fitted.fit.vertices)
+        self.reference = np.asarray(fitted.silhouette.mask) >= 0.5
+        self.moved = np.eye(3)[:2]
+
+    def anchoring(self, mask: np.ndarray, motion: np.ndarray | None) -> tuple[np.ndarray, float]:
+        """The anchor carried onto this frame by ``motion`` (image pixels) and its weight
+        (:data:`~jeanscv.fitting.follow.FOLLOW_ANCHORING` while ``mask`` keeps the anchor
+        frame's shape, fading to 0 as it changes shape)."""
+        from ..fitting.follow import FOLLOW_ANCHORING
+        from ..subject.consensus import iou
+
+        if motion is not None:
+            self.moved = (np.vstack([motion, [0.0, 0.0, 1.0]]) @ np.vstack([self.moved, [0.0, 0.0, 1.0]]))[:2]
+        kept = iou(self._carried_reference(mask.shape), mask)
+        share = float(np.clip((kept - SHAPE_CHANGED) / (SHAPE_KEPT - SHAPE_CHANGED), 0.0, 1.0))
+        return apply_affine(self.moved, self.anchor), FOLLOW_ANCHORING * share
+
+    def _carried_reference(self, shape: tuple[int, int]) -> np.ndarray:
+        """The anchor frame's mask moved by the motion since, ``shape`` (H, W) bool."""
+        import cv2
+
+        # OpenCV's warp has pixel centres at whole numbers, jeanscv's maps at +0.5.
+        shift = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]])
+        warp = (np.linalg.inv(shift) @ np.vstack([self.moved, [0.0, 0.0, 1.0]]) @ shift)[:2]
+        height, width = shape
+        return cv2.warpAffine(self.reference.view(np.uint8), warp, (width, height), flags=cv2.INTER_NEAREST).view(bool)
 
 
 def _framed(mask: np.ndarray, method: str) -> Silhouette:
@@ -127,7 +174,8 @@ class _ClipRun:
         result = apply_jeans(frame.pixels, options)
         self.kind = result.kind
         self.tracks = [_Track(obj, obj) for obj in result.objects]
-        self.follower.start(frame.pixels, [obj.silhouette.mask for obj in result.objects])
+        # The follower sees a transparent clip's clear pixels as white (their RGB is whatever the palette had).
+        self.follower.start(on_white(frame.pixels), [obj.silhouette.mask for obj in result.objects])
         return ClipFrameResult(frame.index, frame.time, frame.duration, result.image, list(result.objects), event)
 
     def start(self, frame: ClipFrame, options: JeansOptions, event: str = "start") -> ClipFrameResult:
@@ -179,7 +227,7 @@ class _ClipRun:
         """A frame after the first: its masks followed, its jeans carried and settled."""
         if self.kind == "silhouette":
             return self._follow_drawing(frame)
-        step = self.follower.step(frame.pixels)
+        step = self.follower.step(on_white(frame.pixels))
         if step.cut:  # found afresh; a scene with nothing to find goes by without jeans
             self.looked_at = -np.inf
             return self.start(frame, _automatic(self.options), "cut")
@@ -193,7 +241,10 @@ class _ClipRun:
             silhouette = _framed(mask, "follow")
             before = track.fitted.silhouette.framing.to_image(track.fitted.fit.vertices)
             carried = apply_affine(motion, before) if motion is not None else before
-            track.fitted = self._settle(track, silhouette, carried)
+            anchor, anchoring = track.anchoring(mask, motion)
+            track.fitted = self._settle(track, silhouette, carried, anchor, anchoring)
+            if anchoring == 0.0:  # a new shape: the jeans are anchored afresh on it
+                track.anchor_on(track.fitted)
             objects.append(track.fitted)
             image = self._paint(image, track.fitted, index)
         if all(obj is None for obj in objects):
@@ -203,14 +254,29 @@ class _ClipRun:
             return ClipFrameResult(frame.index, frame.time, frame.duration, frame.pixels, objects, "lost")
         return ClipFrameResult(frame.index, frame.time, frame.duration, image, objects, "follow")
 
-    def _settle(self, track: _Track, silhouette: Silhouette, carried: np.ndarray) -> FittedObject:
-        """The garment ``carried`` (image pixels) settled on ``silhouette``."""
+    def _settle(
+        self,
+        track: _Track,
+        silhouette: Silhouette,
+        carried: np.ndarray,
+        anchor: np.ndarray | None = None,
+        anchoring: float = 0.0,
+    ) -> FittedObject:
+        """The garment ``carried`` (image pixels) settled on ``silhouette``, pulled towards
+        ``anchor`` (image pixels) by ``anchoring``."""
         from ..fitting.follow import refit
 
         first = track.first.fit
         start = silhouette.framing.to_canvas(carried)
         vertices, objective, terms = refit(
-            silhouette.canvas, start, first.preset, first.garment, backend=self.backend, device=self.device
+            silhouette.canvas,
+            start,
+            first.preset,
+            first.garment,
+            backend=self.backend,
+            device=self.device,
+            anchor=None if anchor is None else silhouette.framing.to_canvas(anchor),
+            anchoring=anchoring,
         )
         fit = dataclasses.replace(
             first,
@@ -238,7 +304,7 @@ class _ClipRun:
         from ..subject.drawing import silhouette_from_drawing
         from ..subject.silhouettes import silhouette_from_alpha
 
-        alpha = silhouette_from_drawing(frame.pixels)
+        alpha = silhouette_from_drawing(on_white(frame.pixels))
         track = self.tracks[0]
         if alpha is None or alpha.sum() < 1.0 or track.fitted is None:
             track.fitted = None
@@ -342,7 +408,9 @@ def write_jeans_clip(
                 frames.append(result.report())
                 if on_frame is not None:
                     on_frame(result)
-                image = result.image if decorate is None else decorate(result.image, result.original)
+                image = result.image
+                if decorate is not None:  # captions and side by side: on white
+                    image = decorate(on_white(image), on_white(result.original))
                 yield ClipFrame(result.index, result.time, result.duration, image)
 
         write_clip(output, painted(), fmt, fps=reader.info.fps, loop=reader.info.loop, reader=reader)

@@ -2,6 +2,7 @@
 // Coordinates sent to the server are pixels of the photo as displayed (x right, y down).
 // This module loads the options and wires the page; each concern is a module beside it.
 import { updateCaptions } from "./captions.js";
+import { wireClip } from "./clip.js";
 import { drawOverlay, watchFit } from "./drawing.js";
 import { addClick, describe, leavePhoto, newObject, pointerDown, pointerMove, pointerUp, redo, rerender, reset, setMode, undo, upload } from "./editor.js";
 import { clearHover, hoverMove } from "./hover.js";
@@ -134,6 +135,7 @@ function wire() {
     e.preventDefault();
     upload(file.name && file.name !== "image.png" ? file : new File([file], "pasted.png", { type: file.type }));
   });
+  wireClip();
   loadOptions().catch((error) => showError(error.message));
 }
 

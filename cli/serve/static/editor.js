@@ -1,6 +1,7 @@
 // One photo: upload, the server's result, and the clicks that fix the subject.
 import { updateMemeLink } from "./captions.js";
 import { adjusted, handleAt, showHandleCursor } from "./boxes.js";
+import { hideClip, showClip } from "./clip.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
 import { clearHover, forgetHover, loadHover } from "./hover.js";
 import { resetZoom } from "./zoom.js";
@@ -23,6 +24,7 @@ function leavePhoto() {
   state.photo = null; // no click, render or download for the photo left
   state.result = null;
   state.cursor = null;
+  hideClip();
   drawOverlay();
   forgetHover();
   resetZoom();
@@ -108,6 +110,7 @@ function start(answer, item) {
   }
   if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
   show(answer);
+  showClip(answer);
   updateControls();
   if (answer.kind === "photo") loadHover(answer.photo, state.generation);
 }

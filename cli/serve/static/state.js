@@ -29,6 +29,7 @@ const state = {
   marks: true, // the outline, mask and clicks drawn over the photo (O hides them)
   animation: 0, // the running animation's number (a newer one, or a stop, ends it)
   generation: 0, // the photo's number: answers for an earlier one are dropped
+  clip: null, // a clip's frames, seconds and format when the photo is a clip's first frame
 };
 
 function setStatus(text, busy = false) {

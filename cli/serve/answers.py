@@ -1,0 +1,41 @@
+"""How the server says no, and names a download: the one-line JSON refusal (no path of
+this machine in it) and the Content-Disposition of a download. Shared by the HTTP layer
+(:mod:`.app`) and its clip endpoints (:mod:`.clips`)."""
+
+from __future__ import annotations
+
+import re
+
+from starlette.responses import JSONResponse
+
+
+class Refused(Exception):
+    """Answer the request with ``{"error": reason}`` and ``status`` (raised anywhere in a
+    handler; the one way the server says no)."""
+
+    def __init__(self, status: int, reason: str, headers: dict | None = None):
+        super().__init__(reason)
+        self.status, self.reason, self.headers = status, reason, headers
+
+
+def error(status: int, reason: str, **headers) -> JSONResponse:
+    return JSONResponse({"error": client_text(reason)}, status_code=status, headers=headers or None)
+
+
+#: An absolute file path inside a message: shown to a client as its last part only.
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.:/])/(?:[^\s'\"/<>]+/)+([^\s'\"/<>]*)")
+
+
+def client_text(reason: str) -> str:
+    """A reason fit for a web client: one line, short, no absolute path of this machine."""
+    text = " ".join(str(reason).split())
+    return _ABSOLUTE_PATH.sub(lambda match: match.group(1) or "(a folder)", text)[:500]
+
+
+def attachment(filename: str) -> str:
+    """A Content-Disposition that saves the answer as ``filename`` (its ASCII letters)."""
+    ascii_name = "".join(c if c.isascii() and c.isprintable() and c not in '"\\' else "_" for c in filename)
+    return f'attachment; filename="{ascii_name}"'
+
+
+__all__ = ["Refused", "attachment", "client_text", "error"]

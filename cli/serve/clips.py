@@ -1,0 +1,253 @@
+"""Clips on the page: a GIF or a short video uploaded, clicked on its first frame, made
+with the jeans following the subject (:func:`jeanscv.run.clips.write_jeans_clip`, the
+command line's own), played in the page and downloaded.
+
+An upload that is a clip of several frames is kept in the server's temporary folder
+(the newest :data:`CLIPS_KEPT`; an older one's photo says it has expired) and its first
+frame becomes the page's photo: the clicks, the box and the automatic subject are those
+of the still flow, and they refer to frame 0, as ``--point`` does for the command. Caps
+(:class:`ClipCaps`) on frames, seconds and pixels per frame are checked from the header
+on upload and again while the clip is made; a clip's making stops at the server's job
+time limit. Every refusal is one line, without paths.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+
+from jeanscv.errors import JeansError
+from jeanscv.io.clip import ClipLimits, ClipReader, clip_format, is_clip
+from jeanscv.io.write import on_white
+
+from . import engine
+from .answers import Refused, attachment, error
+
+#: Uploaded clips kept on disk for making (the oldest is removed for a newer one).
+CLIPS_KEPT = 4
+#: Media types of the clips made.
+CLIP_MEDIA = {"gif": "image/gif", "mp4": "video/mp4", "webp": "image/webp", "png": "image/apng"}
+
+
+@dataclass(frozen=True)
+class ClipCaps:
+    """What the page takes as a clip: at most ``frames`` frames, ``seconds`` long, and
+    ``pixels`` a frame (a short clip: the making runs while the person waits)."""
+
+    frames: int = 300
+    seconds: float = 30.0
+    pixels: int = 1920 * 1080
+
+    def limits(self) -> ClipLimits:
+        return ClipLimits(max_frames=self.frames, max_seconds=self.seconds, max_frame_pixels=self.pixels)
+
+
+@dataclass
+class ClipSource:
+    """An uploaded clip held for making: its file, its header's ``frames`` (None when
+    unknown), ``seconds`` and ``fps``, the ``fmt`` it is made in, and the progress of the
+    making running (``done`` frames)."""
+
+    path: Path
+    frames: int | None
+    seconds: float | None
+    fps: float | None
+    fmt: str
+    done: int = 0
+
+    def summary(self) -> dict:
+        """What the page is told about the clip."""
+        return {
+            "frames": self.frames,
+            "seconds": None if self.seconds is None else round(self.seconds, 2),
+            "format": self.fmt,
+            "media": CLIP_MEDIA[self.fmt],
+        }
+
+
+@dataclass
+class ClipFiles:
+    """The uploaded clips on disk: the newest :data:`CLIPS_KEPT`, the others removed."""
+
+    kept: deque = field(default_factory=deque)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def keep(self, path: Path) -> None:
+        with self.lock:
+            self.kept.append(path)
+            while len(self.kept) > CLIPS_KEPT:
+                _remove(self.kept.popleft())
+
+
+def _remove(path: Path) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass  # the server stopped and removed its temporary folder
+
+
+def _page_reason(exc: JeansError) -> str:
+    """The reader's one line as the page says it (the command's option is no use there)."""
+    return str(exc).replace(" (--max-frames)", " (this server's limit)")
+
+
+def open_clip(path: Path, name: str, caps: ClipCaps, max_pixels: int, subject: str) -> engine.Photo | None:
+    """The upload at ``path`` as a clip: its first frame opened as the page's photo, with
+    the clip's :class:`ClipSource`; None when it is no clip (a still, a one-frame GIF).
+    JeansError with one line when it is over a cap or cannot be read."""
+    if not is_clip(path):
+        return None
+    try:
+        with ClipReader(path, caps.limits()) as reader:
+            info = reader.info
+            if info.frames == 1:
+                return None
+            first = next(reader.frames())
+    except JeansError as exc:
+        raise JeansError(_page_reason(exc)) from None
+    # The page shows frame 0 as a photo (a transparent clip's clear pixels on white, as the
+    # clips' follower sees them); the clip itself is made from the file.
+    photo = engine.open_photo(on_white(first.pixels), name, max_pixels, subject)
+    photo.clip = ClipSource(path, info.frames, info.seconds, info.fps, clip_format(name))
+    return photo
+
+
+def make_clip(
+    photo: engine.Photo,
+    clicks,
+    options: engine.RenderOptions,
+    backend: str | None,
+    caps: ClipCaps,
+    seconds: float,
+    folder: Path,
+) -> tuple[bytes, str, dict]:
+    """``(bytes, file name, summary)`` of the clip with its jeans: ``clicks`` (None:
+    automatic) on frame 0, the page's options (captions and side by side on every
+    frame). Stops with JeansError past ``seconds`` or a cap."""
+    from jeanscv.run.clips import write_jeans_clip
+
+    from ..worker import clip_decorate
+
+    source: ClipSource | None = photo.clip
+    if source is None:
+        raise JeansError("not a clip")
+    if not source.path.exists():
+        raise JeansError("the clip has expired: drop it again")
+    wanted = options.jeans_options(backend).replace(clicks=clicks)
+    deadline = time.monotonic() + seconds
+    source.done = 0
+
+    def on_frame(result) -> None:
+        source.done = result.index + 1
+        if time.monotonic() > deadline:
+            raise JeansError(f"took longer than the server's limit of {seconds:g} s")
+
+    fd, made = tempfile.mkstemp(suffix=f".{source.fmt}", dir=folder)
+    os.close(fd)
+    try:
+        report = write_jeans_clip(
+            source.path,
+            made,
+            wanted,
+            fmt=source.fmt,
+            limits=caps.limits(),
+            on_frame=on_frame,
+            decorate=clip_decorate(wanted),
+        )
+        data = Path(made).read_bytes()
+    except JeansError as exc:
+        raise JeansError(_page_reason(exc)) from None
+    finally:
+        _remove(Path(made))
+    frames = report["frames"]
+    summary = {
+        "frames": report["frames_written"],
+        "seconds": report["seconds"],
+        "format": source.fmt,
+        "media": CLIP_MEDIA[source.fmt],
+        "frames_without_jeans": sum(all(obj is None for obj in frame["objects"]) for frame in frames),
+    }
+    if "stopped" in report:
+        summary["stopped"] = report["stopped"]
+    return data, engine.output_name(photo, f".{source.fmt}"), summary
+
+
+@dataclass
+class MadeClip:
+    """A clip made with its jeans: its bytes, download name and media type."""
+
+    data: bytes
+    name: str
+    media: str
+
+
+class ClipEndpoints:
+    """The clip endpoints of the server's API (:class:`cli.serve.app._Api` has them):
+    ``POST /api/photos/ID/clip`` makes it, ``GET /api/photos/ID/clip/progress`` says how
+    far, ``GET /api/clips/ID`` is the clip (``?download=1``: as a download)."""
+
+    async def make_clip(self, request: Request) -> Response:
+        """The photo's clip with its jeans (clicks and options as for a render): made on the
+        pool, kept as a result; its address plays in the page and downloads."""
+        _, photo, clicks, render_options = await self.clicked(request)
+        if photo.clip is None:
+            raise Refused(422, f"{photo.name}: not a clip")
+        config = self.config
+        made, name, summary = await self.job(
+            photo.name,
+            make_clip,
+            photo,
+            clicks,
+            render_options,
+            self.state.backend,
+            config.clip_caps,
+            config.job_seconds,
+            self.state.tmp,
+        )
+        clip_id = self.state.results.put(MadeClip(made, name, summary["media"]), len(made) + 4096)
+        return JSONResponse({"clip": f"/api/clips/{clip_id}", "name": name, **summary})
+
+    async def clip_progress(self, request: Request) -> Response:
+        photo = self.state.photos.get(request.path_params["photo"])
+        if photo is None or photo.clip is None:
+            return error(404, "no such clip (it may have expired: drop it again)")
+        return JSONResponse(progress(photo))
+
+    async def clip_file(self, request: Request) -> Response:
+        made = self.state.results.get(request.path_params["clip"])
+        if not isinstance(made, MadeClip):
+            return error(404, "no such clip (it may have expired: make it again)")
+        headers = {"Cache-Control": "private, max-age=3600"}
+        if request.query_params.get("download") == "1":
+            headers["Content-Disposition"] = attachment(made.name)
+        return Response(made.data, media_type=made.media, headers=headers)
+
+
+def progress(photo: engine.Photo) -> dict:
+    """How far the making of the photo's clip is: ``done`` and ``frames`` (None: unknown)."""
+    source: ClipSource | None = photo.clip
+    if source is None:
+        raise JeansError("not a clip")
+    return {"done": source.done, "frames": source.frames}
+
+
+__all__ = [
+    "CLIPS_KEPT",
+    "CLIP_MEDIA",
+    "ClipCaps",
+    "ClipEndpoints",
+    "ClipFiles",
+    "ClipSource",
+    "MadeClip",
+    "make_clip",
+    "open_clip",
+    "progress",
+]
