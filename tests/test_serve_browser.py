@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from PIL import Image
 from test_objects import inside_point, share_on
-from test_serve import png_bytes
+from test_serve import png_bytes, scene
 from test_serve_cli import free_port
 
 from testkit.synthetic_photos import two_objects
@@ -113,7 +113,7 @@ def page(browser):
 def _drop_photo(page, image: np.ndarray, name: str = "pets.png", wait: bool = True) -> None:
     """Drop ``image`` on the page as ``name``, as a person drags it from their files,
     and (``wait``) wait until the page shows its result."""
-    _drop_file(page, png_bytes(image), name, "image/png", wait)
+    _drop_file(page, png_bytes(image, compress_level=1), name, "image/png", wait)
 
 
 def _drop_file(page, data: bytes, name: str, media: str, wait: bool = True) -> None:
@@ -195,7 +195,7 @@ def _download(page, button: str, folder: Path) -> Path:
 
 
 def test_drop_click_caption_download(server, page, tmp_path):
-    photo = two_objects()
+    photo = scene()
     photo_masks = dict(zip(("person", "dog"), photo.masks))
     requests, renders = [], []
     page.on("request", lambda request: requests.append(request.url))
@@ -282,7 +282,7 @@ def test_another_sites_page_changes_nothing_in_folder_mode(browser, tmp_path):
 
     photos = tmp_path / "photos"
     photos.mkdir()
-    Image.fromarray(two_objects().image).save(photos / "pets.png")
+    Image.fromarray(scene().image).save(photos / "pets.png")
     with _serving({"folder": photos}) as (server, uv):
         page_html = ATTACK.format(server=server).encode()
 
@@ -320,7 +320,7 @@ def test_a_click_on_plain_background_says_so_and_keeps_the_picture(server, page)
     and keeps the picture, outline and markers as they were."""
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    _drop_photo(page, two_objects().image)
+    _drop_photo(page, scene().image)
     before = page.get_attribute("#result", "src")
     status = page.inner_text("#status")
     _click_photo(page, 20.5, 20.5)
@@ -339,7 +339,7 @@ def test_a_keyboard_alone_opens_a_photo(server, page, tmp_path):
     input was out of the tab order. Now Tab reaches the zone and the file input, and
     Enter opens the file chooser; the chosen photo gets its jeans."""
     path = tmp_path / "pets.png"
-    Image.fromarray(two_objects().image).save(path)
+    Image.fromarray(scene().image).save(path)
     # Listening from the start: Playwright turns file-chooser interception on
     # asynchronously, and a chooser opened before that is a native one, lost.
     choosers = []
@@ -433,7 +433,7 @@ def test_a_new_photo_never_shows_the_last_ones_answers(server, page):
     page.add_init_script(HOLD_ANSWERS)
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    first = two_objects()
+    first = scene()
     _drop_photo(page, first.image, "first.png")
     page.evaluate("() => { window.__hold = true; }")
     for mask in (*first.masks, first.masks[0]):
@@ -464,7 +464,7 @@ def test_watching_the_fit_puts_back_the_newest_picture(server, page):
     page.clock.install()
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    photo = two_objects()
+    photo = scene()
     _drop_photo(page, photo.image)
     automatic = page.get_attribute("#result", "src")
     page.clock.pause_at(time.time() + 60)  # frames and timers now run only when the test says
@@ -557,7 +557,7 @@ def test_reset_undo_downloads_and_the_empty_page(server, page, browser, tmp_path
     middle = page.evaluate("() => document.documentElement.clientWidth / 2")
     assert abs(drop["x"] + drop["width"] / 2 - middle) < 2, (drop, middle)
 
-    photo = two_objects()
+    photo = scene()
     _drop_photo(page, photo.image)
     _click_photo(page, *inside_point(photo.masks[0]))
     page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
@@ -623,7 +623,7 @@ def test_the_caption_preview_is_the_meme_download(server, page, tmp_path):
     the downloaded meme's, within 2 px; text in another script is drawn, an emoji named."""
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    photo = two_objects()
+    photo = scene()
     _drop_photo(page, photo.image)
     box = page.locator("#result").bounding_box()
     assert abs(box["width"] - 800) < 1 and abs(box["height"] - 500) < 1, box  # shown at its own size
@@ -680,7 +680,7 @@ def test_keys_paste_and_the_photo_shown_at_once(server, page):
     page.add_init_script(HOLD_ANSWERS)
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    photo = two_objects()
+    photo = scene()
     page.evaluate("() => { window.__hold = true; }")
     _paste_photo(page, photo.image)
     # Before the server answers: the photo itself, veiled, and no clicks taken.
@@ -781,7 +781,7 @@ def test_a_drag_draws_a_box_and_a_click_stays_a_click(server, page):
     page.on("response", lambda r: r.url.endswith("/render") and r.ok and answers.append(r.json()))
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    photo = two_objects()
+    photo = scene()
     _drop_photo(page, photo.image)
     rows, cols = np.nonzero(photo.masks[1])  # the dog
     x0, y0, x1, y1 = cols.min() - 8, rows.min() - 8, cols.max() + 8, rows.max() + 8
@@ -857,7 +857,7 @@ def test_the_hover_preview_outlines_what_a_click_would_take(server, page):
 
     from jeanscv.subject.consensus import iou
 
-    photo = two_objects()
+    photo = scene()
     asked = []
     page.on("request", lambda request: "/api/" in request.url and asked.append(request.url))
     page.goto(server + "/")
@@ -902,11 +902,16 @@ def test_the_first_run_says_the_kernels_are_being_compiled(browser, monkeypatch)
         context = browser.new_context(viewport={"width": 1280, "height": 860})
         try:
             page = context.new_page()
+            page.clock.install()  # the page asks again every 2 s: the test moves its clock on instead of waiting
             page.goto(url + "/")
             notice = page.locator("#first-run")
             notice.wait_for(state="visible")
             assert "compiled, once (about 25 s)" in notice.text_content()
+            page.clock.run_for(2100)  # asked again while compiling: the notice stays
+            page.wait_for_timeout(300)
+            assert notice.is_visible()
             done.set()
+            page.clock.run_for(2100)
             notice.wait_for(state="hidden", timeout=10_000)
             page.reload()
             page.wait_for_selector("#garment option", state="attached")
@@ -922,7 +927,7 @@ def test_a_boxs_handles_adjust_it_and_segment_again(server, page):
     page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
     page.goto(server + "/")
     page.wait_for_selector("#garment option", state="attached")
-    photo = two_objects()
+    photo = scene()
     _drop_photo(page, photo.image)
     rows, cols = np.nonzero(photo.masks[1])  # the dog
     middle = (cols.min() + cols.max()) / 2
@@ -976,7 +981,7 @@ def test_a_phone_by_touch_alone(server, browser, tmp_path):
     Add/Remove/Undo bar and the mode shown on the photo, zoom by buttons and by a pinch
     (no click made by it), the meme downloaded by a tap."""
     path = tmp_path / "pets.png"
-    photo = two_objects()
+    photo = scene()
     Image.fromarray(photo.image).save(path)
     context = browser.new_context(
         viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True, accept_downloads=True
@@ -1042,7 +1047,7 @@ def test_the_main_flow_by_keyboard_alone(server, page, tmp_path):
     preview following it) and Enter clicks there; a caption typed; the meme downloaded
     from its button by Enter."""
     path = tmp_path / "pets.png"
-    photo = two_objects()
+    photo = scene()
     Image.fromarray(photo.image).save(path)
     bodies = []
     page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
