@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 
 from .grabcut import run_grabcut
-from .masks import resize, shape_for
+from .masks import resize, resize_mask, shape_for
 
 #: GrabCut iterations of a click-seeded cut.
 _ITERATIONS = 3
@@ -189,15 +190,8 @@ def geodesic_grabcut(rgb: np.ndarray, positive: list, negative: list = (), size:
     """
     from skimage.graph import MCP_Geometric  # only when a click is made
 
-    height, width = rgb.shape[:2]
-    small_size = shape_for((height, width), size)
-    small = resize(rgb, small_size, cv2.INTER_AREA)
-    sx, sy = small_size[0] / width, small_size[1] / height
-
-    def scaled(points) -> list[tuple[int, int]]:
-        return [(min(int(x * sx), small_size[0] - 1), min(int(y * sy), small_size[1] - 1)) for x, y in points]
-
-    pos, neg = scaled(positive), scaled(negative)
+    small, onto = small_copy(rgb, size)
+    pos, neg = onto(positive), onto(negative)
     lab = cv2.cvtColor(small.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
     gx = cv2.Sobel(lab, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3)
@@ -212,6 +206,19 @@ def geodesic_grabcut(rgb: np.ndarray, positive: list, negative: list = (), size:
     near_object = MCP_Geometric(cost).find_costs([(y, x) for x, y in pos])[0]
     near_background = MCP_Geometric(cost).find_costs([(y, x) for x, y in neg] + border)[0]
     labels = np.where(near_object < near_background, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-    radius = max(1, round(SEED_FRACTION * min(small_size)))
+    radius = max(1, round(SEED_FRACTION * min(h, w)))
     cut = seeded_grabcut(small, labels, pos, neg, radius)
-    return resize(cut.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR) >= 128
+    return resize_mask(cut, (rgb.shape[1], rgb.shape[0]))
+
+
+def small_copy(rgb: np.ndarray, size: int) -> tuple[np.ndarray, Callable[[Sequence], list[tuple[int, int]]]]:
+    """``rgb`` area-averaged onto a copy with long side ``size`` (as it is when smaller),
+    and the map of ``(x, y)`` pixels of ``rgb`` onto the copy's whole pixels."""
+    height, width = rgb.shape[:2]
+    small_size = shape_for((height, width), size)
+    sx, sy = small_size[0] / width, small_size[1] / height
+
+    def onto(points: Sequence) -> list[tuple[int, int]]:
+        return [(min(int(x * sx), small_size[0] - 1), min(int(y * sy), small_size[1] - 1)) for x, y in points]
+
+    return resize(rgb, small_size, cv2.INTER_AREA), onto

@@ -44,6 +44,7 @@ from .click_parts import (
     geodesic_grabcut,
     interior_distance,
     seeded_grabcut,
+    small_copy,
 )
 from .consensus import border_shares, iou, spans_width
 from .masks import (
@@ -55,7 +56,7 @@ from .masks import (
     fill_holes,
     largest_component,
     outer_contour,
-    resize,
+    resize_mask,
     shape_for,
 )
 from .photo import Segmentation, SharedHypotheses, _validate_image
@@ -121,8 +122,7 @@ class ClickSession:
         self._shared = shared or SharedHypotheses()
         found = self._shared.of(scene_rgb).found
         self._hypotheses = {
-            name: resize(mask.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
-            for name, mask in (found.coarse.items() if found is not None else ())
+            name: resize_mask(mask, self.size) for name, mask in (found.coarse.items() if found is not None else ())
         }
         self._cache: dict[tuple, np.ndarray] = {}
         self._seed_radius = max(1, round(SEED_FRACTION * min(self.size)))
@@ -164,7 +164,7 @@ class ClickSession:
             where = "in that box" if clicks.box is not None else "there"
             raise JeansError(f"nothing found {where}: click inside the subject")
         height, width = self.shape
-        full = resize(working.astype(np.uint8) * 255, (width, height), cv2.INTER_LINEAR) >= 128
+        full = resize_mask(working, (width, height))
         if clicks.box is not None:
             full &= _box_mask(_box_pixels(clicks.box, (width, height)), full.shape)
         for x, y in positive:  # the clicked pixels themselves, whatever the upsampling did
@@ -278,7 +278,7 @@ class ClickSession:
             found = segment(self._image, "auto", shared=self._shared).mask
         except JeansError:
             return np.zeros(self.rgb.shape[:2], bool)
-        return resize(found.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
+        return resize_mask(found, self.size)
 
     # ------------------------------------------------------------------ steps
     def _after(self, clicks: tuple) -> np.ndarray:
@@ -330,11 +330,8 @@ class ClickSession:
         """GrabCut seeded at the click, on a copy of ``_CUT_SIZE``: probably the object
         within a disc around the click, certainly background along the border (the
         point seeds of GrabCut's users)."""
-        x, y = point
-        small_size = shape_for(self.rgb.shape[:2], _CUT_SIZE)
-        small = resize(self.rgb, small_size, cv2.INTER_AREA)
-        sx, sy = small_size[0] / self.size[0], small_size[1] / self.size[1]
-        px, py = min(int(x * sx), small_size[0] - 1), min(int(y * sy), small_size[1] - 1)
+        small, onto = small_copy(self.rgb, _CUT_SIZE)
+        ((px, py),) = onto([point])
         short = min(small.shape[:2])
         labels = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
         cv2.circle(labels, (px, py), max(2, round(_PROBABLE_RADIUS * short)), int(cv2.GC_PR_FGD), -1)
@@ -342,8 +339,7 @@ class ClickSession:
         labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_BGD,) * 4
         radius = max(1, round(SEED_FRACTION * short))
         cut = seeded_grabcut(small, labels, [(px, py)], [], radius)
-        mask = resize(cut.astype(np.uint8) * 255, self.size, cv2.INTER_LINEAR) >= 128
-        return _constrained(mask, [point], [])
+        return _constrained(resize_mask(cut, self.size), [point], [])
 
     def _geodesic_first(self, point: tuple[int, int]) -> np.ndarray | None:
         """What is geodesically nearer the click than the image border (the background

@@ -30,6 +30,12 @@ def resize(array: np.ndarray, size: tuple[int, int], interpolation: int) -> np.n
     return cv2.resize(array, size, interpolation=interpolation)
 
 
+def resize_mask(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """A bool mask at ``size`` = (width, height): linearly interpolated, then halved (the
+    mask itself when the size already matches)."""
+    return resize(mask.astype(np.uint8) * 255, size, cv2.INTER_LINEAR) >= 128
+
+
 def downscale(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """An image area-averaged down to ``size`` = (width, height), halved first by
     ``cv2.pyrDown`` while it is at least 4 times that size: OpenCV's area resampling
