@@ -327,6 +327,22 @@ def test_a_box_alone_takes_the_object_in_it_and_nothing_outside():
     assert mask.sum() < 1.03 * body.sum()  # the grey round it is left out
 
 
+def test_a_box_keeps_every_piece_in_it_and_its_holes():
+    """A box round two apart pieces and a ring: all three are the object (a bicycle's
+    wheels, not its largest piece), and the ring's hole, background, stays a hole."""
+    image = np.full((160, 240, 3), (90, 140, 90), np.uint8)
+    image[40:120, 30:90] = (200, 40, 40)
+    image[60:100, 150:210] = (40, 40, 200)
+    ring = np.zeros((160, 240), np.uint8)
+    cv2.circle(ring, (120, 80), 25, 1, -1)
+    cv2.circle(ring, (120, 80), 10, 0, -1)
+    image[ring.astype(bool)] = (230, 200, 40)
+    expected = ring.astype(bool)
+    expected[40:120, 30:90] = expected[60:100, 150:210] = True
+    mask = ClickSession(image).segment([], [], (30.0, 40.0, 210.0, 120.0)).mask
+    assert np.array_equal(mask, expected)
+
+
 def test_a_box_with_clicks():
     """With positive clicks the click engine segments and the box clips: the head and
     body as one click takes them, minus what lies outside the box."""

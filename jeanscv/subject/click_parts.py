@@ -192,10 +192,7 @@ def geodesic_grabcut(rgb: np.ndarray, positive: list, negative: list = (), size:
 
     small, onto = small_copy(rgb, size)
     pos, neg = onto(positive), onto(negative)
-    lab = cv2.cvtColor(small.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
-    gx = cv2.Sobel(lab, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3)
-    cost = np.sqrt((gx**2 + gy**2).sum(axis=-1)) + 1.0  # +1: a flat stretch still costs its length
+    cost = gradient_cost(small)
     h, w = cost.shape
     border = (
         [(0, x) for x in range(w)]
@@ -209,6 +206,15 @@ def geodesic_grabcut(rgb: np.ndarray, positive: list, negative: list = (), size:
     radius = max(1, round(SEED_FRACTION * min(h, w)))
     cut = seeded_grabcut(small, labels, pos, neg, radius)
     return resize_mask(cut, (rgb.shape[1], rgb.shape[0]))
+
+
+def gradient_cost(rgb: np.ndarray) -> np.ndarray:
+    """``(H, W) float32`` cost of stepping on each pixel for geodesic distances: the Lab
+    gradient's magnitude (Sobel), plus 1 (a flat stretch still costs its length)."""
+    lab = cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
+    gx = cv2.Sobel(lab, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3)
+    return np.sqrt((gx**2 + gy**2).sum(axis=-1)) + 1.0
 
 
 def small_copy(rgb: np.ndarray, size: int) -> tuple[np.ndarray, Callable[[Sequence], list[tuple[int, int]]]]:

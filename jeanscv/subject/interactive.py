@@ -37,6 +37,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 from jeanscv.subject.clicks import Box, ObjectClicks
 
+from .box_cut import box_cut
 from .click_parts import (
     SEED_FRACTION,
     ClickGraph,
@@ -113,6 +114,7 @@ class ClickSession:
         """``shared``: auto's hypotheses of this photo, when :func:`photo.segment` has cut
         them already (or will: they are cut once, by whichever asks first)."""
         rgb, _ = _validate_image(image)
+        self._rgb = rgb  # the box's cut crops the photo itself
         self._image = image  # for the automatic subject, which a negative click alone edits
         self.shape = rgb.shape[:2]
         height, width = self.shape
@@ -194,7 +196,7 @@ class ClickSession:
         neg = [q for q in (self._to_working(p) for p in negative) if q not in pos]
         sequence = tuple(("+", p) for p in pos) + tuple(("-", p) for p in neg)
         if clicks.box is not None:
-            mask = self._boxed(_box_pixels(clicks.box, self.shape[::-1], self.size), sequence)
+            mask = self._boxed(_box_pixels(clicks.box, self.shape[::-1]), sequence)
         elif not pos:
             mask = self._minus(sequence)
         else:
@@ -203,47 +205,53 @@ class ClickSession:
         return mask
 
     def _boxed(self, box: tuple[int, int, int, int], clicks: tuple) -> np.ndarray:
-        """The object inside ``box`` (working pixels ``(x0, y0, x1, y1)``, end exclusive),
+        """The object inside ``box`` (photo pixels ``(x0, y0, x1, y1)``, end exclusive),
         then the clicks ((sign, working pixel) pairs, in order) as corrections.
 
-        The box alone: GrabCut with everything outside the box certain background
-        (GrabCut's own interaction), its largest piece. Each click then corrects that
-        mask as a click corrects the last one (:meth:`_step`, geodesic, local), the
-        box's deepest point standing for the object until a positive click does; nothing
-        outside the box; the boundary refined at pixel level. Remembered. (Seeding the
-        GrabCut with the clicks instead made the first click after a box lower the mean
-        IoU on the shared photos: its colour models are global.)"""
+        The box alone: :func:`~.box_cut.box_cut` on the photo's own pixels (GrabCut on a
+        crop, two starts, every piece kept, holes left open), its boundary refined at
+        pixel level on the working copy. Each click then corrects that mask as a click
+        corrects the last one (:meth:`_step`, geodesic), a deepest point of every piece
+        standing for the object beside the positive clicks; only within a quarter of
+        the box's diagonal of the click; nothing outside the box. Remembered. (Seeding
+        the GrabCut with the clicks instead made the first click after a box lower the
+        mean IoU on the shared photos: its colour models are global.)"""
         key = ("box", box, clicks)
         if key in self._cache:
             return self._cache[key]
-        x0, y0, x1, y1 = box
-        inside = _box_mask(box, self.rgb.shape[:2])
-        if clicks:
-            previous = self._boxed(box, clicks[:-1])
-            # The box's object stays, whatever the clicks add: its deepest point is kept
-            # beside the positive clicks (a click on a missed paw that the geodesic step
-            # does not join to the body used to leave the paw alone). It is no click: a
-            # negative click often lands right there (a box round a thin thing holds
-            # mostly background), and as a positive one it kept that pixel alone.
-            stand_in = _largest_piece_point(previous)
-            mask = self._step(previous, clicks, keep=stand_in) & inside if previous.any() else previous
-            # Local: the box already found the object, so a click changes only what lies
-            # within a quarter of the box's diagonal of it (a negative click on the
-            # background between a dog's legs must not take the dog).
-            (cx, cy) = clicks[-1][1]
-            reach = 0.25 * math.hypot(x1 - x0, y1 - y0)
-            rows, columns = np.ogrid[: mask.shape[0], : mask.shape[1]]
-            near = (columns - cx) ** 2 + (rows - cy) ** 2 <= reach**2
-            mask = np.where(near, mask, previous)
-        else:
-            labels = np.where(inside, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
-            mask = seeded_grabcut(self.rgb, labels, [], [], self._seed_radius) & inside
-            stand_in = []
+        height, width = self.shape
+        x0, y0, x1, y1 = working = _box_pixels(box, (width, height), self.size)
+        inside = _box_mask(working, self.rgb.shape[:2])
+        if not clicks:
+            # Cut on the photo's own pixels (a crop of it), then onto the working copy,
+            # where the boundary is refined like a click's.
+            mask = resize_mask(box_cut(self._rgb, box), self.size) & inside
+            mask = self._pixels.refine(mask) & inside if mask.any() else mask
+            return self._remember(key, mask)
+        previous = self._boxed(box, clicks[:-1])
+        # Every piece of the box's object stays, whatever the clicks add: a deepest point
+        # of each is kept beside the positive clicks. They are no clicks: a negative
+        # click often lands right there (a box round a thin thing holds mostly
+        # background), and as a positive one it kept that pixel alone.
+        stand_in = _piece_points(previous, self._smallest)
+        mask = self._step(previous, clicks, keep=stand_in) & inside if previous.any() else previous
         pos = [p for sign, p in clicks if sign == "+"]
         neg = [p for sign, p in clicks if sign == "-"]
         keep = (pos + [(x, y) for x, y in stand_in if mask[y, x]]) or _largest_piece_point(mask)
         if mask.any() and keep:
             mask = _constrained(self._pixels.refine(_constrained(mask, keep, neg)), keep, neg) & inside
+        # Local: the box already found the object, so a click changes only what lies
+        # within a quarter of the box's diagonal of it (a negative click on the
+        # background between a dog's legs must not take the dog).
+        (cx, cy) = clicks[-1][1]
+        reach = 0.25 * math.hypot(x1 - x0, y1 - y0)
+        rows, columns = np.ogrid[: mask.shape[0], : mask.shape[1]]
+        near = (columns - cx) ** 2 + (rows - cy) ** 2 <= reach**2
+        mask = np.where(near, mask, previous)
+        for x, y in pos:
+            mask[y, x] = True
+        for x, y in neg:
+            mask[y, x] = False
         return self._remember(key, mask)
 
     def _remember(self, key: tuple, mask: np.ndarray) -> np.ndarray:
@@ -442,6 +450,18 @@ def _box_pixels(box: Box, size: tuple[int, int], target: tuple[int, int] | None 
     x1 = max(min(int(math.ceil(box[2] * sx)), tw), x0 + 1)
     y1 = max(min(int(math.ceil(box[3] * sy)), th), y0 + 1)
     return x0, y0, x1, y1
+
+
+def _piece_points(mask: np.ndarray, least: int) -> list[tuple[int, int]]:
+    """A pixel ``(x, y)`` deepest inside each piece of ``mask`` of at least ``least``
+    pixels (8-connected), the largest piece's first; [] when empty."""
+    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    if count <= 1:
+        return []
+    areas = np.bincount(labels.ravel(), minlength=count)
+    areas[0] = 0
+    order = [int(k) for k in np.argsort(-areas, kind="stable") if areas[k] >= least or k == np.argmax(areas)]
+    return [deepest_point(labels == k) for k in order if areas[k] > 0]
 
 
 def _largest_piece_point(mask: np.ndarray) -> list[tuple[int, int]]:
