@@ -358,6 +358,24 @@ def test_a_box_with_clicks():
     assert share(negative, body) > 0.98 and not negative[130, 160]
 
 
+def test_a_recut_after_a_box_gives_back_what_a_negative_click_says_is_background():
+    """box_recut: a mask that took the object and a strip of the ground beside it, and a
+    negative click on the strip: GrabCut on the box re-fits its colours and gives back
+    the object exactly, and nothing outside the box."""
+    from jeanscv.subject.box_cut import box_recut
+
+    image = np.full((120, 160, 3), (90, 140, 90), np.uint8)
+    image[40:90, 50:100] = (200, 40, 40)
+    expected = np.zeros((120, 160), bool)
+    expected[40:90, 50:100] = True
+    previous = expected.copy()
+    previous[40:90, 100:115] = True  # the ground beside it, taken
+    box = (45, 35, 120, 95)
+    recut = box_recut(image, box, previous, [(75, 65)], [(108, 65)], 2)
+    assert np.array_equal(recut, expected)
+    assert np.array_equal(box_recut(image, box, previous, [], [(108, 65)], 2), expected)
+
+
 def test_a_box_that_holds_nothing_says_so():
     with pytest.raises(JeansError, match="nothing found in that box"):
         session().segment([], [], (200.0, 200.0, 240.0, 238.0))  # grey noise only

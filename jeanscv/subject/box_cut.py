@@ -1,6 +1,6 @@
 """The object inside a box a person dragged round it: GrabCut on a crop, two starts.
 
-Public API: :func:`box_cut` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
+Public API: :func:`box_cut` and :func:`box_recut` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
 
 Arrays: images ``(H, W, 3)`` RGB ``uint8``; masks ``(H, W) bool``; boxes ``(x0, y0, x1,
 y1)`` whole pixels of the array, end exclusive.
@@ -28,7 +28,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 
 from .click_parts import gradient_cost
-from .grabcut import run_grabcut
+from .grabcut import cut_pool, run_grabcut
 from .masks import downscale, resize_mask
 
 #: The crop is cut on a copy this long. On the shared photos (a box from each reference
@@ -54,8 +54,7 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
     """The object inside ``box`` of ``rgb``: ``(H, W)`` bool, False outside the box."""
     height, width = rgb.shape[:2]
     x0, y0, x1, y1 = box
-    margin = max(2, round(MARGIN * max(x1 - x0, y1 - y0)))
-    cx0, cy0, cx1, cy1 = max(0, x0 - margin), max(0, y0 - margin), min(width, x1 + margin), min(height, y1 + margin)
+    cx0, cy0, cx1, cy1 = _with_margin(box, (height, width))
     crop = rgb[cy0:cy1, cx0:cx1]
     ch, cw = crop.shape[:2]
     scale = min(1.0, size / max(ch, cw))
@@ -77,7 +76,10 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
         ring = max(1, round(0.02 * min(sh, sw)))
         labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_PR_BGD,) * 4
     starts = {"box": labels, "geodesic": _geodesic_start(small, labels, inside)}
-    cuts = {name: _cut(small, start) & inside for name, start in starts.items() if start is not None}
+    # The two starts are cut side by side where OpenCV may use two threads or more.
+    with cut_pool() as pool:
+        jobs = {name: pool.submit(_cut, small, start) for name, start in starts.items() if start is not None}
+        cuts = {name: job.result() & inside for name, job in jobs.items()}
     chosen = max(cuts, key=lambda name: (_score(small, cuts[name], inner), name == "box"))
     found = np.zeros((height, width), bool)
     found[cy0:cy1, cx0:cx1] = resize_mask(cuts[chosen], (cw, ch))
@@ -85,6 +87,49 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
     outside[y0:y1, x0:x1] = False
     found[outside] = False
     return found
+
+
+def box_recut(
+    rgb: np.ndarray,
+    box: tuple[int, int, int, int],
+    previous: np.ndarray,
+    positive: list[tuple[int, int]],
+    negative: list[tuple[int, int]],
+    radius: int,
+) -> np.ndarray:
+    """``previous`` (the object in ``box`` of ``rgb``, ``(H, W)`` bool) corrected by clicks
+    (whole pixels ``(x, y)`` of ``rgb``): GrabCut on the box and its margin, started from
+    ``previous`` as "probably" each side, with a hard disc of ``radius`` at every click;
+    nothing outside the box.
+
+    A click's geodesic correction can take a large region where the object and what
+    surrounds it share colours (a negative click beside a cat on a lap took the cat);
+    GrabCut re-fits its colour models on the crop and moves the boundary only where the
+    colours say so: on the shared pet photos it never lowered the IoU by more than 0.05
+    where the geodesic correction did 19 times in 102 clicks, but it gains less per
+    click."""
+    from .click_parts import seeded_grabcut
+
+    x0, y0, x1, y1 = box
+    cx0, cy0, cx1, cy1 = _with_margin(box, rgb.shape[:2])
+    crop = np.ascontiguousarray(rgb[cy0:cy1, cx0:cx1])
+    inside = np.zeros(crop.shape[:2], bool)
+    inside[y0 - cy0 : y1 - cy0, x0 - cx0 : x1 - cx0] = True
+    before = previous[cy0:cy1, cx0:cx1]
+    labels = np.where(inside, np.where(before, cv2.GC_PR_FGD, cv2.GC_PR_BGD), cv2.GC_BGD).astype(np.uint8)
+    pos = [(x - cx0, y - cy0) for x, y in positive]
+    neg = [(x - cx0, y - cy0) for x, y in negative]
+    found = np.zeros_like(previous)
+    found[cy0:cy1, cx0:cx1] = seeded_grabcut(crop, labels, pos, neg, radius) & inside
+    return found
+
+
+def _with_margin(box: tuple[int, int, int, int], shape: tuple[int, int]) -> tuple[int, int, int, int]:
+    """``box`` grown by :data:`MARGIN` of its long side (at least 2 pixels) each way,
+    within an image of ``shape`` ``(H, W)``: the crop GrabCut learns the background on."""
+    x0, y0, x1, y1 = box
+    margin = max(2, round(MARGIN * max(x1 - x0, y1 - y0)))
+    return max(0, x0 - margin), max(0, y0 - margin), min(shape[1], x1 + margin), min(shape[0], y1 + margin)
 
 
 def _cut(small: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -136,4 +181,4 @@ def _score(small: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) 
     return float((1.0 - np.sqrt(inner * outer).sum()) * reach)
 
 
-__all__ = ["box_cut", "CUT_SIZE"]
+__all__ = ["box_cut", "box_recut", "CUT_SIZE"]

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import copy
 import threading
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -51,7 +50,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 from jeanscv.options import SILHOUETTE_METHODS, SUBJECTS
 
-from .grabcut import HYPOTHESIS_ITERATIONS, grabcut, grabcut_coarse_best, grabcut_or_none, refine
+from .grabcut import HYPOTHESIS_ITERATIONS, cut_pool, grabcut, grabcut_coarse_best, grabcut_or_none, refine
 from .masks import (
     FULL_FRACTION,
     MIN_AREA_FRACTION,
@@ -109,33 +108,6 @@ def _alpha_meaningful(alpha: np.ndarray) -> bool:
     return MIN_AREA_FRACTION <= fraction <= FULL_FRACTION
 
 
-class _Inline:
-    """An executor that runs each job at once on the calling thread."""
-
-    def __enter__(self) -> _Inline:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        return None
-
-    def submit(self, job, *args, **kwargs) -> Future:
-        future: Future = Future()
-        try:
-            future.set_result(job(*args, **kwargs))
-        except BaseException as error:  # raised by result(), as from a thread
-            future.set_exception(error)
-        return future
-
-
-def _hypothesis_pool() -> ThreadPoolExecutor | _Inline:
-    """Threads for the hypotheses' GrabCuts: as many as OpenCV may use, 2 to 4; none
-    when it may use one. One worker beside the caller (who meanwhile thresholds) only
-    competes with it for the core: on 12-MP copies of the 18 real photos with OpenCV
-    on one thread, the median CPU time was 0.634 s with a worker and 0.554 s inline."""
-    threads = min(4, cv2.getNumThreads())
-    return ThreadPoolExecutor(threads) if threads > 1 else _Inline()
-
-
 def _grabcut_hypothesis(scene: Scene) -> tuple[str, np.ndarray | None]:
     """(variant, coarse mask or None) of the border-colour GrabCut hypothesis."""
     try:
@@ -166,7 +138,7 @@ def hypotheses(rgb: np.ndarray, scene: Scene, details: dict) -> Hypotheses:
     # The GrabCuts are independent and OpenCV releases the GIL: cut them side by side on
     # the threads OpenCV may use, or here one after the other when it may use one (a
     # batch worker gets its share of the cores, often 1).
-    with _hypothesis_pool() as pool:
+    with cut_pool() as pool:
         grabcut_job = pool.submit(_grabcut_hypothesis, scene)
         cut_jobs = {
             name: pool.submit(grabcut_or_none, small, labels, HYPOTHESIS_ITERATIONS)
