@@ -47,9 +47,10 @@ def _single_torch_thread():
 @pytest.fixture(scope="session")
 def compiled_kernels():
     """The numba kernels compiled into the on-disk cache before a test that gives a
-    subprocess a deadline: in a fresh clone the first fit compiles them (half a minute, more
-    with two workers compiling at once), which would eat the deadline and make the test
-    depend on what the cache holds. Subprocesses share the cache (same environment)."""
+    subprocess a deadline, or checks that a fresh process loads them from there: in a fresh
+    clone the first fit compiles them (half a minute, more with two workers compiling at
+    once), which would eat the deadline and make the test depend on what the cache holds.
+    Subprocesses share the cache (same environment)."""
     from jeanscv.device import fast_available
 
     if fast_available():

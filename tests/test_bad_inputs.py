@@ -489,7 +489,7 @@ def test_svg_doctype_with_external_dtd_is_not_fetched(tmp_path, run_cli, no_netw
         '<?xml version="1.0"?>\n<!DOCTYPE svg SYSTEM "local.dtd">\n'
         '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 256 256"><path d="&shape;"/></svg>'
     )
-    result = run_cli(standard, local, *FAST, "-q")
+    result = run_cli(standard, local, *FAST, "-q", "-j", "1")  # here, where no_network holds (not in workers)
     assert result.exit_code == 1
     assert result.stderr.splitlines() == [f"jeanscv: {local}: SVG has no filled path"]
     assert sorted(p.name for p in tmp_path.iterdir()) == [

@@ -246,7 +246,7 @@ def _fresh(code: str) -> str:
     return done.stdout.strip()
 
 
-def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
+def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache(compiled_kernels):
     code = """
         import numpy as np
         from jeanscv.fitting import _fast
@@ -258,12 +258,11 @@ def test_a_fresh_process_loads_the_compiled_kernels_from_the_cache():
         kernel.descend(BatchAdam(JEANS.template[None] / 256, 0.01), np.ones((256, 256)), 2, 2.5)
         print(*(sum(getattr(f.stats, k).values()) for f in (objective, descend) for k in ("cache_hits", "cache_misses")))
     """
-    _fresh(code)  # fills the cache if nothing else has
     objective_hits, objective_misses, descend_hits, descend_misses = map(int, _fresh(code).split())
     assert objective_hits >= 1 and descend_hits >= 1 and objective_misses == descend_misses == 0
 
 
-def test_cached_kernels_load_without_numbas_registry_refresh_and_fit_the_same():
+def test_cached_kernels_load_without_numbas_registry_refresh_and_fit_the_same(compiled_kernels):
     """The kernels load from the cache without the refresh that imports numba's
     registries (and scipy.linalg through them), and fit to the same bits as after it."""
     code = """
@@ -280,7 +279,6 @@ def test_cached_kernels_load_without_numbas_registry_refresh_and_fit_the_same():
         print(refreshed, result.vertices.tobytes().hex())
     """
     numbas = "from numba.core.registry import cpu_target; cpu_target.target_context.refresh()"
-    _fresh(code.format(refresh=""))  # fills the cache if nothing else has
     light, light_fit = _fresh(code.format(refresh="")).split()
     full, full_fit = _fresh(code.format(refresh=numbas)).split()
     assert (light, full) == ("False", "True")

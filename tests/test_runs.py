@@ -24,9 +24,11 @@ pytestmark = [
     pytest.mark.usefixtures("compiled_kernels"),  # the kills land mid-batch, not mid-compile
 ]
 
-# Torch backend: no kernel compilation in a fresh process; enough iterations that a kill
-# usually lands mid-batch (the assertions hold wherever it lands).
-SLOW = ("--iterations", "12", "--starts", "1", "--backend", "torch", "-q")
+# The fast backend (its kernels cached before the test, ``compiled_kernels``, and loaded
+# once by the workers' fork server; torch's workers import torch each, 3.5 s of CPU apiece),
+# with enough iterations (~0.5 s a file) that a kill usually lands mid-batch (the
+# assertions hold wherever it lands).
+SLOW = ("--iterations", "1000", "--starts", "1", "--backend", "fast", "-q")
 COUNT = 5
 
 
@@ -264,13 +266,13 @@ def test_a_run_removes_temporaries_killed_runs_left_in_its_output_folder(tmp_pat
     another program's temporary file is left alone. (Both runs in this process: nothing
     is killed here, and what a run finds on disk does not depend on which process runs it.)"""
     folder, out, names = make_folder(tmp_path)
-    done = run_cli(folder, "-o", out, *SLOW)
+    done = run_cli(folder, "-o", out, *SLOW, "-j", "1")
     assert done.exit_code == 0, done.stderr
     before = assert_valid_outputs(out, names)
     (out / names[1]).unlink()
     for name in (names[0], names[1], "notes.txt"):
         (out / f".{name}.0badf00d.tmp").write_bytes(b"half of it")
-    again = run_cli(folder, "-o", out, *SLOW)
+    again = run_cli(folder, "-o", out, *SLOW, "-j", "1")
     assert again.exit_code == 0, again.stderr
     assert temporaries(out) == [".notes.txt.0badf00d.tmp"]
     (out / ".notes.txt.0badf00d.tmp").unlink()

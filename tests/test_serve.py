@@ -434,7 +434,7 @@ def test_folder_clicks_replay_through_the_command_line(make_client, folder, run_
     assert client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": objects}).status_code == 200
     served = (folder / "pets.jeans.png").read_bytes()
     (folder / "pets.jeans.png").unlink()
-    result = run_cli(folder, "-q")  # the batch picks the saved clicks up
+    result = run_cli(folder, "-q", "-j", "1")  # the batch picks the saved clicks up (in this process)
     assert result.exit_code == 0, result.stderr
     with Image.open(folder / "pets.jeans.png") as cli_output:
         expected = np.asarray(cli_output)
