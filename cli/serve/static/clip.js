@@ -66,10 +66,13 @@ async function makeClip() {
   bar.removeAttribute("value"); // under way, how far not known yet
   if (total) bar.max = total;
   setStatus("Making the clip…", true);
+  // A progress answer can arrive after the clip's own (its request was under way when
+  // the clip was done): once finished, it says nothing.
+  let finished = false;
   const timer = setInterval(async () => {
     try {
       const progress = await answerOf(await fetch(`/api/photos/${photo}/clip/progress`));
-      if (number !== making || !progress.done) return;
+      if (finished || number !== making || !progress.done) return;
       if (total) bar.value = Math.min(progress.done, total);
       setStatus(`Making the clip: frame ${progress.done}${total ? ` of ${total}` : ""}…`, true);
     } catch (error) {
@@ -78,11 +81,13 @@ async function makeClip() {
   }, 400);
   try {
     const answer = await post(`/api/photos/${photo}/clip`, { objects: clickedObjects(), options: clipOptions() });
+    finished = true;
     if (number !== making) return;
     playClip(answer);
     const lost = answer.frames_without_jeans ? `, ${answer.frames_without_jeans} without jeans (the subject was out of sight)` : "";
     setStatus(`${answer.name}: ${answer.frames} frames${lost}.`);
   } catch (error) {
+    finished = true;
     if (number !== making) return;
     setStatus("");
     showError(error.message);
