@@ -224,9 +224,9 @@ class ClickSession:
         standing for the object beside the positive clicks, or, for a negative click
         whose step changes over :data:`_BOX_STEP_SHARE` of the box, by GrabCut on the box
         (:func:`~.box_cut.box_recut`); only within a quarter of the box's diagonal of
-        the click; nothing outside the box. Remembered. (Seeding
-        the GrabCut with the clicks instead made the first click after a box lower the
-        mean IoU on the shared photos: its colour models are global.)"""
+        the click; nothing outside the box. Remembered. (Seeding the GrabCut with the
+        clicks instead made the first click after a box lower the mean IoU on the shared
+        photos: its colour models are global.)"""
         key = ("box", box, clicks)
         if key in self._cache:
             return self._cache[key]
