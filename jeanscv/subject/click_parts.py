@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -19,6 +20,8 @@ from jeanscv.errors import JeansError
 
 from .grabcut import run_grabcut
 from .masks import resize, resize_mask, shape_for
+
+Name = TypeVar("Name", bound=Hashable)
 
 #: GrabCut iterations of a click-seeded cut.
 _ITERATIONS = 3
@@ -46,6 +49,9 @@ SEED_FRACTION = 0.012
 #: at 240 (two real photos under their floors), 0.695 / 0.819 / 0.870 and 0.596 / 0.676
 #: / 0.776 at 480.
 GEODESIC_CUT_SIZE = 160
+#: Weight of the click's relative depth against agreement when a click chooses among
+#: candidates (:func:`agreed`).
+DEPTH_WEIGHT = 0.5
 
 
 def seeded_grabcut(rgb: np.ndarray, labels: np.ndarray, pos: list, neg: list, radius: int) -> np.ndarray:
@@ -168,6 +174,30 @@ class ClickGraph:
                         distance[other] = candidate
                         heapq.heappush(heap, (candidate, other))
         return np.array(distance)
+
+
+def agreed(
+    names: Sequence[Name],
+    overlap: Callable[[Name, Name], float],
+    depth: Callable[[Name], float],
+    votes: dict[Name, float] | None = None,
+    tie: Name | None = None,
+) -> Name:
+    """The candidate the others agree with most: the mean of ``overlap(a, b)`` (their
+    IoU) over the other candidates ``b``, each weighted by ``votes`` (1 by default),
+    plus :data:`DEPTH_WEIGHT` times ``depth(a)``, the click's relative depth in ``a`` (a
+    person clicks the middle of the thing: a mask the click only grazes is likely the
+    wrong one). ``tie`` wins ties, else the first of equals. The one rule of the first
+    click (:class:`~.interactive.ClickSession`) and of its preview (:mod:`.hover`)."""
+    if len(names) == 1:
+        return names[0]
+    votes = votes or {}
+    scores = {
+        a: np.average([overlap(a, b) for b in names if b != a], weights=[votes.get(b, 1.0) for b in names if b != a])
+        + DEPTH_WEIGHT * depth(a)
+        for a in names
+    }
+    return max(names, key=lambda name: (scores[name], name == tie))
 
 
 def interior_distance(region: np.ndarray) -> np.ndarray:

@@ -19,8 +19,8 @@ shown is what the first click takes.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -54,8 +54,8 @@ class FirstClickMap:
 def first_click_map(session) -> FirstClickMap:
     """The :class:`FirstClickMap` of a :class:`~jeanscv.subject.interactive.ClickSession`
     (about a second; the page asks for it once per photo)."""
-    from .click_parts import interior_distance
-    from .interactive import _DEPTH_WEIGHT, _EDGE_CONTRAST, _grouped_pieces
+    from .click_parts import agreed, interior_distance
+    from .interactive import _EDGE_CONTRAST, _grouped_pieces
 
     graph = session._graph
     labels, count, area = graph.labels, graph.count, graph.area
@@ -104,6 +104,16 @@ def first_click_map(session) -> FirstClickMap:
             depths[key] = distance[py, px] / max(float(distance.max()), 1.0)
         return float(depths[key][node])
 
+    def overlap(geodesic_iou: np.ndarray | None, a: tuple[str, int], b: tuple[str, int]) -> float:
+        """Two candidates' IoU: of two pieces, or of a piece and the geodesic region."""
+        if a[0] == "piece" and b[0] == "piece":
+            return piece_iou[a[1], b[1]]
+        return geodesic_iou[a[1] if a[0] == "piece" else b[1]]
+
+    def depth(node: int, a: tuple[str, int]) -> float:
+        """The relative depth of superpixel ``node``'s point in candidate ``a``."""
+        return piece_depth[a[1]][node] if a[0] == "piece" else geodesic_depth(keys[node], node)
+
     regions: dict[object, int] = {}
     region_nodes: list[np.ndarray] = []
     choice = np.full(count, -1)
@@ -112,20 +122,8 @@ def first_click_map(session) -> FirstClickMap:
         names = [("piece", p) for p in held[node]] + ([("geodesic", -1)] if found is not None else [])
         if not names:
             continue
-        best, best_score = names[0], -math.inf
-        for kind, index in names if len(names) > 1 else ():
-            agreement = []
-            for other_kind, other in names:
-                if (other_kind, other) == (kind, index):
-                    continue
-                if kind == "piece" and other_kind == "piece":
-                    agreement.append(piece_iou[index, other])
-                else:
-                    agreement.append(found[1][index if kind == "piece" else other])
-            depth = piece_depth[index][node] if kind == "piece" else geodesic_depth(keys[node], node)
-            score = float(np.mean(agreement)) + _DEPTH_WEIGHT * depth
-            if score > best_score:  # the first of equals, as _agreed (without its GrabCut)
-                best, best_score = (kind, index), score
+        # As the first click chooses, without its GrabCuts.
+        best = agreed(names, partial(overlap, found[1] if found else None), partial(depth, node))
         kind, index = best
         key = ("geodesic", keys[node]) if kind == "geodesic" else ("piece", index)
         if key not in regions:

@@ -42,6 +42,7 @@ from .click_parts import (
     SEED_FRACTION,
     ClickGraph,
     PixelRefiner,
+    agreed,
     geodesic_grabcut,
     interior_distance,
     seeded_grabcut,
@@ -85,8 +86,6 @@ _CUT_SIZE = 160
 #: A hypothesis piece that a positive click offers may not reach more than this share of
 #: the top, left or right side where the mask does not reach it already.
 _PIECE_CONTACT = 0.1
-#: Weight of the click's relative depth against agreement when the first click chooses.
-_DEPTH_WEIGHT = 0.5
 #: A candidate's vote in that choice: the geodesic region and the GrabCut seeded by it
 #: (nearly the same partition, one in superpixels, one in pixels) are one voter between
 #: them, or together they outvote auto's hypotheses wherever the click's colour region is
@@ -534,24 +533,16 @@ def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
 def _agreed(
     candidates: dict[str, np.ndarray], point: tuple[int, int], tie: str, votes: dict[str, float] | None = None
 ) -> str:
-    """The name of the candidate mask the others agree with most (mean IoU, each other
-    candidate's weighted by ``votes``, 1 by default), plus ``_DEPTH_WEIGHT`` times the
-    click's relative depth in it (a person clicks the middle of the thing: a mask the
-    click only grazes is likely the wrong one); ``tie`` wins ties."""
-    votes = votes or {}
-    names = list(candidates)
-    if len(names) == 1:
-        return names[0]
+    """The name of the candidate mask that :func:`~.click_parts.agreed` chooses, by
+    their IoU and the click's relative depth in each."""
     x, y = point
-    scores = {
-        a: np.average(
-            [iou(candidates[a], candidates[b]) for b in names if b != a],
-            weights=[votes.get(b, 1.0) for b in names if b != a],
-        )
-        + _DEPTH_WEIGHT * _relative_depth(candidates[a], x, y)
-        for a in names
-    }
-    return max(names, key=lambda n: (scores[n], n == tie))
+    return agreed(
+        list(candidates),
+        lambda a, b: iou(candidates[a], candidates[b]),
+        lambda a: _relative_depth(candidates[a], x, y),
+        votes,
+        tie,
+    )
 
 
 def _new_border_strip(addition: np.ndarray, previous: np.ndarray) -> bool:
