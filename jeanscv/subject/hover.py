@@ -10,8 +10,8 @@ nearer the click than the border and a GrabCut seeded by that region, the candid
 others agree with most and the click lies deepest in. Here that choice is made once per
 superpixel (at its pixel nearest its centre), without the two GrabCuts (0.2 s a click:
 2,000 superpixels would take minutes): the hypotheses' pieces are cut once, the
-geodesic regions come from one pruned Dijkstra per superpixel (what lies farther from the click than from the
-border is never expanded), and agreement is counted per superpixel. Each region is a
+geodesic regions from one Dijkstra per superpixel, each only as far as it lies from
+the border, and agreement is counted per superpixel. Each region is a
 set of superpixels (a piece: the superpixels mostly in it), so the page draws it from
 the superpixel labels alone. ``bench/hover_preview.py`` measures how often the region
 shown is what the first click takes.
@@ -25,6 +25,9 @@ from functools import partial
 import numpy as np
 
 from .masks import MIN_AREA_FRACTION, fill_holes
+
+#: Distances this close (relative) count as equal: float sums in another order.
+_TIE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -151,8 +154,13 @@ def _geodesic_regions(graph) -> tuple[list[bytes], dict[bytes, np.ndarray]]:
     image border: :meth:`ClickSession._geodesic_first`, whose click's own superpixel is
     no border), and each distinct region, ``(count,) bool``, by key.
 
-    scipy's Dijkstra from every superpixel (C: about a second for 2,000 superpixels,
-    against ten in Python), in chunks that keep the distances to a few MB."""
+    Superpixel ``w`` is in the region of ``v`` when ``d(v, w) < d(border, w)``: rather
+    than a search from every ``v`` as far as the farthest superpixel lies from the
+    border, each ``w`` searches only as far as it lies from the border itself (the
+    graph is undirected), in chunks of similar reach; a border superpixel's own region
+    (the border without it) is searched from it. scipy's Dijkstra (C), in chunks that
+    keep the distances to a few MB: about a third of the time of a search from every
+    superpixel."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
 
@@ -165,23 +173,31 @@ def _geodesic_regions(graph) -> tuple[list[bytes], dict[bytes, np.ndarray]]:
         near_border = dijkstra(matrix, indices=border, min_only=True)
     else:
         near_border = np.full(count, np.inf)
-    own_bound = {}  # a border superpixel's click: the border without it
+    reach = np.zeros((count, count), bool)  # reach[v, w]: w is in the region of v
+    by_reach = np.argsort(near_border, kind="stable")
+    for start in range(0, count, 256):
+        nodes = by_reach[start : start + 256]
+        bound = near_border[nodes]
+        limit = float(bound.max()) if np.isfinite(bound).all() else np.inf
+        # d(w, v) sums the path's steps in the other order than d(v, w), the click's
+        # search, so a tie (steps under the graph's floor cost nothing) may come out an
+        # ulp either way: ties stay with the border, as the click's search mostly has it.
+        below = bound - _TIE * np.maximum(bound, 1.0)
+        reach[:, nodes] = (dijkstra(matrix, indices=nodes, limit=limit) < below[:, None]).T
     for node in border:
         others = border[border != node]
-        own_bound[int(node)] = dijkstra(matrix, indices=others, min_only=True) if len(others) else np.inf
-    # Nothing farther than the farthest bound is ever reached: the searches stop there.
-    limit = float(max([near_border.max(), *(float(np.max(b)) for b in own_bound.values())]))
+        if not len(others):
+            reach[node] = True  # the border is this superpixel alone: nothing is nearer it
+            continue
+        own_bound = dijkstra(matrix, indices=others, min_only=True)
+        reach[node] = dijkstra(matrix, indices=[node], limit=float(own_bound.max()))[0] < own_bound
+    reach[np.arange(count), np.arange(count)] = True
     keys: list[bytes] = []
     regions: dict[bytes, np.ndarray] = {}
-    for start in range(0, count, 256):
-        nodes = np.arange(start, min(start + 256, count))
-        distances = dijkstra(matrix, indices=nodes, limit=limit)
-        for row, node in enumerate(nodes.tolist()):
-            reach = distances[row] < own_bound.get(node, near_border)
-            reach[node] = True
-            key = np.packbits(reach).tobytes()
-            regions.setdefault(key, reach)
-            keys.append(key)
+    for node in range(count):
+        key = np.packbits(reach[node]).tobytes()
+        regions.setdefault(key, reach[node].copy())
+        keys.append(key)
     return keys, regions
 
 
