@@ -9,8 +9,11 @@ checkout ``jeanscv/_command.py`` loads the ``cli/`` folder under that name.
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import shutil
+import threading
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +85,51 @@ class _RealPhotoHypotheses:
 def real_photo_hypotheses() -> _RealPhotoHypotheses:
     """``real_photo_hypotheses.take(stem)``: see :class:`_RealPhotoHypotheses`."""
     return _RealPhotoHypotheses()
+
+
+class _CutOnce:
+    """auto's hypotheses (:meth:`~jeanscv.subject.photo.PreparedScene.of`) of each working
+    copy cut once for every test that asks for ``cut_once``: the same few photos (the dog
+    and its owner, the clicks figure) were cut afresh by some 80 tests, a second a cut,
+    though a cut gives the same scene every time (``test_clicks.py`` checks sharing gives
+    the same results). The latest few are kept (~7 MB each); a copy that differs from the
+    one held, pixel for pixel, is cut anew."""
+
+    KEEP = 8
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()  # the server's threads: a second caller waits for the cut
+        self._held: OrderedDict[tuple, object] = OrderedDict()
+
+    def of(self, cut, rgb: np.ndarray):
+        """The prepared scene of ``rgb``: held, or ``cut(rgb)`` now."""
+        key = (rgb.shape, rgb.dtype.str, hashlib.blake2b(np.ascontiguousarray(rgb).data, digest_size=16).digest())
+        with self._lock:
+            held = self._held.get(key)
+            if held is None or not np.array_equal(held.rgb, rgb):
+                held = self._held[key] = cut(rgb)
+            self._held.move_to_end(key)
+            while len(self._held) > self.KEEP:
+                self._held.popitem(last=False)
+            return held
+
+
+@pytest.fixture(scope="session")
+def _cuts() -> _CutOnce:
+    return _CutOnce()
+
+
+@pytest.fixture
+def cut_once(request, _cuts, monkeypatch):
+    """auto's hypotheses of a photo cut once for all the tests that use this fixture
+    (:class:`_CutOnce`), unless the test is marked ``fresh_cuts``: its point is the
+    cutting itself (how often, on which thread, how long it takes)."""
+    if request.node.get_closest_marker("fresh_cuts"):
+        return
+    from jeanscv.subject.photo import PreparedScene
+
+    cut = PreparedScene.of
+    monkeypatch.setattr(PreparedScene, "of", staticmethod(lambda rgb: _cuts.of(cut, rgb)))
 
 
 def float64_tensor(array):

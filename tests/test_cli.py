@@ -15,6 +15,7 @@ from conftest import ROOT, blue_pixels, write_silhouette_png, write_silhouette_s
 from PIL import Image
 
 FAST = ("--iterations", "4", "--starts", "1")
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
 REPORT_KEYS = {
     "input",
     "output",

@@ -22,6 +22,8 @@ FIT = dict(iterations=30, starts=2)
 CLI_FIT = ("--iterations", "30", "--starts", "2")
 BODY_CLICK, HEAD_CLICK, DISC_CLICK = (90.5, 130.5), (160.5, 130.5), (260.5, 120.5)
 
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
+
 
 @cache
 def figure() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -90,6 +92,7 @@ def test_every_positive_click_is_in_and_no_negative_one():
     assert checked >= 2
 
 
+@pytest.mark.fresh_cuts  # two sessions each cutting afresh agree
 def test_the_same_clicks_give_the_same_mask():
     image = figure()[0]
     clicks = ([BODY_CLICK, DISC_CLICK], [HEAD_CLICK])
@@ -101,6 +104,7 @@ def test_the_same_clicks_give_the_same_mask():
     assert np.array_equal(first, again) and np.array_equal(first, warm.segment(*clicks).mask)
 
 
+@pytest.mark.fresh_cuts  # counts the cuts
 def test_auto_and_a_session_cut_the_hypotheses_once_with_the_same_results(monkeypatch):
     from jeanscv.subject import photo
 

@@ -22,6 +22,8 @@ from testkit.synthetic_photos import iou, two_objects
 FIT = dict(iterations=40, starts=4)
 CLI_FIT = ("--iterations", "40", "--starts", "4")
 
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
+
 
 @cache
 def scene():

@@ -13,6 +13,7 @@ from jeanscv.api import apply_jeans, silhouette_from_drawing
 from testkit.synthetic import silhouette_zoo
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_images"
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
 
 
 def synthetic_photo(height: int = 300, width: int = 400) -> tuple[np.ndarray, np.ndarray]:

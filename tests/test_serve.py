@@ -26,6 +26,8 @@ from jeanscv_cli.serve import engine  # noqa: E402
 
 BASE = "http://127.0.0.1:8000"
 
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
+
 
 @cache
 def scene():
@@ -160,6 +162,7 @@ def test_good_photo_then_clicks_then_downloads(client):
     assert list(server_temp(client).iterdir()) == []
 
 
+@pytest.mark.fresh_cuts  # counts the cuts
 def test_auto_and_the_click_session_cut_the_hypotheses_once(client, monkeypatch):
     from jeanscv.subject import photo as segmentation
 

@@ -31,6 +31,7 @@ from test_serve_cli import free_port
 from testkit.synthetic_photos import two_objects
 
 CHROMIUM = os.environ.get("JEANSCV_CHROMIUM", "/usr/bin/chromium")
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
 
 
 def _browser_missing() -> str:
@@ -424,6 +425,7 @@ def _let_go(page, part: str) -> None:
     )
 
 
+@pytest.mark.fresh_cuts  # a race between two photos' answers: each photo's work as long as it is
 def test_a_new_photo_never_shows_the_last_ones_answers(server, page):
     """Issue 32's first bug: three quick clicks, then another photo dropped at once. The
     old photo's queued render came back after the new photo was shown, and its jeans

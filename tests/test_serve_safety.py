@@ -48,6 +48,7 @@ def listing(folder: Path) -> list[str]:
 # ------------------------------------------------------------- 1. other sites
 
 
+@pytest.mark.usefixtures("cut_once")  # the dog and its owner cut once (conftest.py)
 def test_nothing_another_site_sends_does_anything(make_client, folder):
     client = make_client(folder=folder)
     before = listing(folder)
@@ -80,6 +81,7 @@ def test_nothing_another_site_sends_does_anything(make_client, folder):
 # ------------------------------------------------------------- 2. symbolic links
 
 
+@pytest.mark.usefixtures("cut_once")  # the dog and its owner cut once (conftest.py)
 def test_folder_mode_never_follows_a_symbolic_link(make_client, folder, tmp_path):
     outside = tmp_path / "outside"
     outside.mkdir()
@@ -118,6 +120,7 @@ def test_folder_mode_never_follows_a_symbolic_link(make_client, folder, tmp_path
 # ------------------------------------------------------------- 3. paths in errors, damaged outputs
 
 
+@pytest.mark.usefixtures("cut_once")  # the dog and its owner cut once (conftest.py)
 def test_a_damaged_output_is_made_again(make_client, folder):
     output = folder / "pets.jeans.png"
     output.write_bytes(b"not a picture at all")
@@ -128,6 +131,7 @@ def test_a_damaged_output_is_made_again(make_client, folder):
         assert made.size == (800, 500)  # the command line's output, made again
 
 
+@pytest.mark.usefixtures("cut_once")  # the dog and its owner cut once (conftest.py)
 def test_no_absolute_path_in_an_error(make_client, folder, tmp_path):
     (folder / "pets.jeans.png").mkdir()  # an output that can never be written
     client = make_client(folder=folder)
@@ -154,6 +158,7 @@ def test_client_text(text, shown):
 # ------------------------------------------------------------- 4. bodies that broke the parsers
 
 
+@pytest.mark.usefixtures("cut_once")  # the dog and its owner cut once (conftest.py)
 def test_absurd_click_bodies_are_one_line_422(client_photo):
     client, photo = client_photo
     nested = b'{"objects": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"

@@ -20,6 +20,8 @@ from jeanscv.subject.consensus import Candidate
 from jeanscv.subject.kinds import KindCues, choose_kind, split_pieces
 from testkit.synthetic_photos import iou, pet_beside_owner
 
+pytestmark = pytest.mark.usefixtures("cut_once")  # the same photos' hypotheses, cut once (conftest.py)
+
 
 @cache
 def scene():
