@@ -380,6 +380,26 @@ def test_a_recut_after_a_box_gives_back_what_a_negative_click_says_is_background
     assert np.array_equal(box_recut(image, box, previous, [], [(108, 65)], 2), expected)
 
 
+def test_box_score_is_colour_separation_times_the_share_of_the_box_crossed():
+    """box_score, exact: a red square on green ground in a box round it. The square
+    itself: histograms apart (separation 1), every row and column crossed (reach 1). Its
+    left half: separation 1 - sqrt(share of red in the rest of the crop) (the right
+    half is red outside the mask), reach 0.5 (half the columns)."""
+    from jeanscv.subject.box_cut import box_score
+
+    image = np.full((120, 160, 3), (90, 140, 90), np.uint8)
+    image[40:80, 60:100] = (200, 40, 40)
+    square = np.zeros((120, 160), bool)
+    square[40:80, 60:100] = True
+    box = (60, 40, 100, 80)  # the margin: 4 pixels each way, a crop of 48 x 48
+    assert box_score(image, square, box) == 1.0
+    half = np.zeros_like(square)
+    half[40:80, 60:80] = True
+    red_outside = 40 * 20 / (48 * 48 - 40 * 20)
+    assert box_score(image, half, box) == pytest.approx((1 - np.sqrt(red_outside)) * 0.5, abs=1e-12)
+    assert box_score(image, np.zeros_like(square), box) == 0.0
+
+
 def test_a_box_that_holds_nothing_says_so():
     with pytest.raises(JeansError, match="nothing found in that box"):
         session().segment([], [], (200.0, 200.0, 240.0, 238.0))  # grey noise only

@@ -1,6 +1,6 @@
 """The object inside a box a person dragged round it: GrabCut on a crop, two starts.
 
-Public API: :func:`box_cut` and :func:`box_recut` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
+Public API: :func:`box_cut`, :func:`box_recut` and :func:`box_score` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
 
 Arrays: images ``(H, W, 3)`` RGB ``uint8``; masks ``(H, W) bool``; boxes ``(x0, y0, x1,
 y1)`` whole pixels of the array, end exclusive.
@@ -125,6 +125,16 @@ def box_recut(
     return found
 
 
+def box_score(rgb: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) -> float:
+    """How good ``mask`` (``(H, W)`` bool) looks as the object in ``box`` of ``rgb``,
+    without knowing the answer: :func:`_score` on the box's crop (the box and its
+    margin), the score that chooses between :func:`box_cut`'s two starts."""
+    x0, y0, x1, y1 = box
+    cx0, cy0, cx1, cy1 = _with_margin(box, rgb.shape[:2])
+    inner = (x0 - cx0, y0 - cy0, x1 - cx0, y1 - cy0)
+    return _score(rgb[cy0:cy1, cx0:cx1], mask[cy0:cy1, cx0:cx1], inner)
+
+
 def _with_margin(box: tuple[int, int, int, int], shape: tuple[int, int]) -> tuple[int, int, int, int]:
     """``box`` grown by :data:`MARGIN` of its long side (at least 2 pixels) each way,
     within an image of ``shape`` ``(H, W)``: the crop GrabCut learns the background on."""
@@ -182,4 +192,4 @@ def _score(small: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) 
     return float((1.0 - np.sqrt(inner * outer).sum()) * reach)
 
 
-__all__ = ["box_cut", "box_recut", "CUT_SIZE"]
+__all__ = ["box_cut", "box_recut", "box_score", "CUT_SIZE"]
