@@ -378,6 +378,18 @@ def test_a_recut_after_a_box_gives_back_what_a_negative_click_says_is_background
     recut = box_recut(image, box, previous, [(75, 65)], [(108, 65)], 2)
     assert np.array_equal(recut, expected)
     assert np.array_equal(box_recut(image, box, previous, [], [(108, 65)], 2), expected)
+    # Four times the size: the crop (360 pixels) is cut on a 320-pixel copy, the answer
+    # brought back to the photo's pixels, still nothing outside the box.
+    big = cv2.resize(image, (640, 480), interpolation=cv2.INTER_NEAREST)
+    big_expected = cv2.resize(expected.astype(np.uint8), (640, 480), interpolation=cv2.INTER_NEAREST) > 0
+    big_previous = cv2.resize(previous.astype(np.uint8), (640, 480), interpolation=cv2.INTER_NEAREST) > 0
+    big_box = tuple(4 * v for v in box)
+    big_recut = box_recut(big, big_box, big_previous, [(300, 260)], [(432, 260)], 8)
+    # The copy's pixels are 1.1 of the photo's: the boundary may move by up to two.
+    near_edge = cv2.dilate(big_expected.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    near_edge &= ~cv2.erode(big_expected.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    assert not ((big_recut ^ big_expected) & ~near_edge).any()
+    assert not big_recut[:140].any() and not big_recut[:, 480:].any()
 
 
 def test_box_score_is_colour_separation_times_the_share_of_the_box_crossed():

@@ -99,29 +99,43 @@ def box_recut(
     positive: list[tuple[int, int]],
     negative: list[tuple[int, int]],
     radius: int,
+    size: int = CUT_SIZE,
 ) -> np.ndarray:
     """``previous`` (the object in ``box`` of ``rgb``, ``(H, W)`` bool) corrected by clicks
-    (whole pixels ``(x, y)`` of ``rgb``): GrabCut on the box and its margin, started from
-    ``previous`` as "probably" each side, with a hard disc of ``radius`` at every click;
-    nothing outside the box.
+    (whole pixels ``(x, y)`` of ``rgb``): GrabCut on the box and its margin (on a copy no
+    longer than ``size``), started from ``previous`` as "probably" each side, with a
+    hard disc of ``radius`` at every click; nothing outside the box.
 
     A click's geodesic correction can take a large region where the object and what
     surrounds it share colours (a negative click beside a cat on a lap took the cat);
     GrabCut re-fits its colour models on the crop and moves the boundary only where the
     colours say so: on the shared pet photos it never lowered the IoU by more than 0.05
     where the geodesic correction did 19 times in 102 clicks, but it gains less per
-    click."""
+    click. At 320 pixels rather than the session's 480, after a box and 10 clicks the
+    mean IoU was within 0.006 (real / pets: 0.780 / 0.819 / 0.840 and 0.779 / 0.807 /
+    0.838 after 1 / 3 / 5 clicks, against 0.781 / 0.820 / 0.834 and 0.778 / 0.812 /
+    0.837) and a negative click on 12 MP took a median 0.23 s instead of 0.27 s."""
     x0, y0, x1, y1 = box
     cx0, cy0, cx1, cy1 = _with_margin(box, rgb.shape[:2])
     crop = np.ascontiguousarray(rgb[cy0:cy1, cx0:cx1])
-    inside = np.zeros(crop.shape[:2], bool)
+    ch, cw = crop.shape[:2]
+    inside = np.zeros((ch, cw), bool)
     inside[y0 - cy0 : y1 - cy0, x0 - cx0 : x1 - cx0] = True
     before = previous[cy0:cy1, cx0:cx1]
     labels = np.where(inside, np.where(before, cv2.GC_PR_FGD, cv2.GC_PR_BGD), cv2.GC_BGD).astype(np.uint8)
-    pos = [(x - cx0, y - cy0) for x, y in positive]
-    neg = [(x - cx0, y - cy0) for x, y in negative]
+    scale = min(1.0, size / max(ch, cw))
+    sw, sh = max(1, round(cw * scale)), max(1, round(ch * scale))
+    if scale < 1.0:
+        crop = np.ascontiguousarray(downscale(crop, (sw, sh)))
+        labels = cv2.resize(labels, (sw, sh), interpolation=cv2.INTER_NEAREST)
+        radius = max(1, round(radius * scale))
+
+    def small(points: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        return [(min(sw - 1, int((x - cx0) * sw / cw)), min(sh - 1, int((y - cy0) * sh / ch))) for x, y in points]
+
+    cut = seeded_grabcut(crop, labels, small(positive), small(negative), radius)
     found = np.zeros_like(previous)
-    found[cy0:cy1, cx0:cx1] = seeded_grabcut(crop, labels, pos, neg, radius) & inside
+    found[cy0:cy1, cx0:cx1] = (resize_mask(cut, (cw, ch)) if scale < 1.0 else cut) & inside
     return found
 
 
