@@ -19,7 +19,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 
 from .grabcut import run_grabcut
-from .masks import resize, resize_mask, shape_for
+from .masks import downscale, resize_mask, shape_for
 
 Name = TypeVar("Name", bound=Hashable)
 
@@ -257,4 +257,4 @@ def small_copy(rgb: np.ndarray, size: int) -> tuple[np.ndarray, Callable[[Sequen
     def onto(points: Sequence) -> list[tuple[int, int]]:
         return [(min(int(x * sx), small_size[0] - 1), min(int(y * sy), small_size[1] - 1)) for x, y in points]
 
-    return resize(rgb, small_size, cv2.INTER_AREA), onto
+    return np.ascontiguousarray(downscale(rgb, small_size)), onto
