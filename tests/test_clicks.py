@@ -412,6 +412,41 @@ def test_box_score_is_colour_separation_times_the_share_of_the_box_crossed():
     assert box_score(image, np.zeros_like(square), box) == 0.0
 
 
+def test_the_core_start_holds_an_ellipse_round_the_boxs_centre():
+    """_core_start, exact: box (2, 2, 12, 12) of a 14 x 14 copy, half-axes 0.2 of 10 = 2
+    round (7, 7): the 13 pixels of a radius-2 disc held as the object, the rest kept."""
+    from jeanscv.subject.box_cut import _core_start
+
+    labels = np.full((14, 14), cv2.GC_BGD, np.uint8)
+    labels[2:12, 2:12] = cv2.GC_PR_FGD
+    start = _core_start(labels, (2, 2, 12, 12))
+    expected = labels.copy()
+    for y, x0, x1 in ((5, 7, 8), (6, 6, 9), (7, 5, 10), (8, 6, 9), (9, 7, 8)):
+        expected[y, x0:x1] = cv2.GC_FGD
+    assert np.array_equal(start, expected)
+
+
+def test_a_box_whose_starts_collapse_is_cut_again_from_its_centre(monkeypatch):
+    """Where both starts give nothing (two cats in a box of the margin's colours), the
+    box is cut again with its centre held as the object: a red square on green ground
+    comes back exactly. In a box of plain noise that cut adds only a few pixels to the
+    core it was given, so nothing is found there still."""
+    import jeanscv.subject.box_cut as box_cut_module
+
+    real_cut = box_cut_module._cut
+
+    def collapsing(small, labels):  # the two starts collapse; the core start cuts
+        return real_cut(small, labels) if (labels == cv2.GC_FGD).any() else np.zeros(labels.shape, bool)
+
+    monkeypatch.setattr(box_cut_module, "_cut", collapsing)
+    image = np.full((120, 160, 3), (90, 140, 90), np.uint8)
+    image[40:80, 60:100] = (200, 40, 40)
+    expected = np.zeros((120, 160), bool)
+    expected[40:80, 60:100] = True
+    assert np.array_equal(box_cut_module.box_cut(image, (56, 36, 104, 84)), expected)
+    assert not box_cut_module.box_cut(figure()[0], (200, 200, 240, 238)).any()
+
+
 def test_a_box_that_holds_nothing_says_so():
     with pytest.raises(JeansError, match="nothing found in that box"):
         session().segment([], [], (200.0, 200.0, 240.0, 238.0))  # grey noise only
