@@ -116,7 +116,7 @@ def picture(result, options: JeansOptions):
     return image
 
 
-def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> None:
+def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome, shared=None) -> None:
     from jeanscv import pipeline
     from jeanscv.io.clip import is_clip
     from jeanscv.io.write import atomic_write_bytes
@@ -129,7 +129,7 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome) -> 
     if is_clip(job.path):
         _run_clip(job, options, targets, outcome)
         return
-    result = pipeline.apply_jeans(job.path, options)
+    result = pipeline.apply_jeans(job.path, options, shared=shared)
     fit = result.fit
     outcome.info = {
         "kind": result.kind,
@@ -255,11 +255,13 @@ def _object_info(obj) -> dict:
 _BUSY = False
 
 
-def process(job: Job, options: JeansOptions, overwrite: bool = False, wait: bool = True) -> Outcome:
+def process(job: Job, options: JeansOptions, overwrite: bool = False, wait: bool = True, shared=None) -> Outcome:
     """Process one job; never raises for a bad input (the outcome says ``failed``).
 
     Another jeanscv run may be making this file's outputs: with ``wait``, wait for it and
-    then skip what it made; without, leave the file to it for now (``busy``).
+    then skip what it made; without, leave the file to it for now (``busy``). ``shared``:
+    a :class:`~jeanscv.subject.photo.SharedHypotheses` of this photo (``jeanscv serve``
+    cuts a folder photo's once for its page and its outputs; the outputs are the same).
 
     KeyboardInterrupt and :class:`Terminated` propagate, after the atomic writers
     have removed their temporary files.
@@ -273,7 +275,7 @@ def process(job: Job, options: JeansOptions, overwrite: bool = False, wait: bool
             if not ours:
                 outcome.status, outcome.error = "busy", "another jeanscv run is making it"
             elif wanted_outputs(job, options, overwrite):
-                _run(job, options, overwrite, outcome)
+                _run(job, options, overwrite, outcome, shared)
             else:
                 outcome.status, outcome.error = "skipped", "made by another jeanscv run meanwhile"
     except Exception as exc:  # noqa: BLE001 - every failure becomes one line for this file

@@ -186,7 +186,11 @@ def _to_decoded(points, original_size: tuple[int, int], size: tuple[int, int]) -
 
 
 def apply_jeans(
-    source: str | os.PathLike | np.ndarray, options: JeansOptions | None = None, **overrides: Any
+    source: str | os.PathLike | np.ndarray,
+    options: JeansOptions | None = None,
+    *,
+    shared: SharedHypotheses | None = None,
+    **overrides: Any,
 ) -> JeansResult:
     """Decode, segment, fit and composite in one call.
 
@@ -200,6 +204,8 @@ def apply_jeans(
     clicks, ``clicks`` (a :class:`jeanscv.subject.clicks.Clicks` or a clicks file) several
     objects' (see :func:`extract_silhouettes`); ``mask`` may be an array or an image file. RAW files are decoded at the camera's full size unless ``raw_half_size``.
     ``posture``: ``upright`` or ``any`` (see :func:`fit`). ``backend``: as in :func:`fit`.
+    ``shared``: as in :func:`prepare_input` (auto's hypotheses of this photo, cut once for
+    everything done with it; the result is the same without).
     """
     from .fitting import _fast
     from .fitting.presets import get_preset
@@ -212,7 +218,7 @@ def apply_jeans(
         from .subject.scene import prepare_lab_tables
 
         prepare_lab_tables()  # segmentation's colour tables, built on the other core while the photo decodes
-    silhouettes, resolved_kind, pixels, loaded = prepare_input(source, options)
+    silhouettes, resolved_kind, pixels, loaded = prepare_input(source, options, shared=shared)
     fitted = []
     image = pixels
     for index, silhouette in enumerate(silhouettes):

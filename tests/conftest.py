@@ -11,13 +11,20 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import os
 import shutil
 import threading
 from collections import OrderedDict
 from pathlib import Path
 
-import numpy as np
-import pytest
+# numpy's OpenBLAS on one thread, as the command and the server run it
+# (jeanscv_cli.main.one_blas_thread), set before numpy loads it: on two threads the
+# saliency's few-hundred-node solve took 30-100 ms instead of 4-30, and its threads'
+# spinning took the core the GrabCut threads, the browser and the workers wait for.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "silhouettes"

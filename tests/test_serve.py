@@ -424,6 +424,38 @@ def test_folder_fix_with_clicks(make_client, folder):
     assert client.post(f"/api/folder/{index}/open").json()["clicks"] is False
 
 
+@pytest.mark.fresh_cuts  # counts the cuts
+def test_a_folder_photo_is_cut_once_for_its_thumbnail_page_clicks_and_revert(
+    make_client, folder, run_cli, monkeypatch, tmp_path
+):
+    """auto's hypotheses of a folder photo are cut once for its thumbnail's output, the
+    page's result and click session, the clicks' output and the revert's (it was four
+    cuts): the outputs are still the command line's, which cuts afresh."""
+    from jeanscv.subject import photo as segmentation
+
+    cuts = []
+    hypotheses = segmentation.hypotheses
+    monkeypatch.setattr(segmentation, "hypotheses", lambda *args: cuts.append(1) or hypotheses(*args))
+    client = make_client(folder=folder)
+    index = next(item["item"] for item in client.get("/api/folder").json()["items"] if item["name"] == "pets.png")
+    assert client.post(f"/api/folder/{index}/thumb").status_code == 200
+    automatic = (folder / "pets.jeans.png").read_bytes()
+    photo = client.post(f"/api/folder/{index}/open").json()["photo"]
+    assert client.get(f"/api/photos/{photo}/hover").status_code == 200  # the click session is made
+    objects = [{"positive": [inside_point(scene().masks[1])], "negative": [inside_point(scene().masks[0])]}]
+    assert client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": objects}).status_code == 200
+    clicked = (folder / "pets.jeans.png").read_bytes()
+    (tmp_path / "saved.clicks.json").write_bytes(sidecar_path(folder / "pets.png").read_bytes())
+    reverted = client.post(f"/api/folder/{index}/clicks", json={"photo": photo, "objects": [], "revert": True})
+    assert reverted.status_code == 200 and (folder / "pets.jeans.png").read_bytes() == automatic
+    assert len(cuts) == 1
+    result = run_cli(folder / "pets.png", "--clicks", tmp_path / "saved.clicks.json", "-o", tmp_path, "-q")
+    assert result.exit_code == 0, result.stderr
+    assert len(cuts) == 2  # the command line's own cut
+    with Image.open(tmp_path / "pets.jeans.png") as cli_output, Image.open(io.BytesIO(clicked)) as served:
+        assert np.array_equal(np.asarray(served), np.asarray(cli_output))
+
+
 def test_folder_clicks_replay_through_the_command_line(make_client, folder, run_cli):
     """A clicks file saved by the page gives the same output through ``jeanscv FOLDER``,
     and the page's own full-size picture of those clicks is that output too."""

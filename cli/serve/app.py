@@ -31,7 +31,7 @@ from .answers import Refused, client_text  # noqa: F401 - client_text: the tests
 from .answers import attachment as _attachment
 from .answers import error as _error
 from .guard import UNEXPECTED, BodyRefused, Guard, TooLarge, log_unexpected, own_names
-from .store import Busy, Pool, Stopping, Store, TooSlow
+from .store import Busy, FolderCuts, Pool, Stopping, Store, TooSlow
 
 #: Default upload cap: a 60-MP camera RAW file is 60-120 MB.
 DEFAULT_MAX_UPLOAD = 200 << 20
@@ -127,6 +127,7 @@ class State:
         # Folder items (by name) whose subject may be the wrong thing, once known: their
         # output was made, or they were opened, here (True/False; clicks make it False).
         self.unsure: dict[str, bool] = {}
+        self.cuts = FolderCuts()  # folder photos' hypotheses, cut once for page and outputs
         self.clip_files = clips.ClipFiles()
 
     def open(self) -> None:
@@ -244,8 +245,10 @@ class _Api(clips.ClipEndpoints):
             "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
         }
 
-    def open_and_render(self, path: Path, name: str, clicks_for, subject: str = "auto", photo=None) -> dict:
-        photo = photo or engine.open_photo(path, name, self.config.max_pixels, subject)
+    def open_and_render(
+        self, path: Path, name: str, clicks_for, subject: str = "auto", photo=None, shared=None
+    ) -> dict:
+        photo = photo or engine.open_photo(path, name, self.config.max_pixels, subject, shared)
         photo_id = self.state.photos.put(photo, photo.nbytes)
         clicks = clicks_for(photo) if clicks_for else None
         answer = self.render(photo_id, photo, clicks, engine.RenderOptions())
@@ -426,12 +429,16 @@ class _Api(clips.ClipEndpoints):
         with self.state.folder_lock:
             _refuse_links(job, self.state.folder)
             if engine.output_stale(job):
-                self._remember(job, engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels))
+                self._write_outputs(job)
             try:
                 return engine.thumbnail(output, _THUMB_SIDE)
             except JeansError:
-                self._remember(job, engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels))
+                self._write_outputs(job)
                 return engine.thumbnail(output, _THUMB_SIDE)
+
+    def _write_outputs(self, job) -> None:
+        shared = self.state.cuts.of(job.path.name)
+        self._remember(job, engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels, shared))
 
     def _remember(self, job, uncertain: bool | None) -> None:
         """Keep a folder item's ``uncertain`` for the listing (clicks count as sure)."""
@@ -459,7 +466,10 @@ class _Api(clips.ClipEndpoints):
                 return None
             return clicks
 
-        answer = await self.job(job.path.name, self.open_and_render, job.path, job.path.name, saved)
+        shared = self.state.cuts.of(job.path.name)  # cut already for its thumbnail, or now for its outputs too
+        answer = await self.job(
+            job.path.name, self.open_and_render, job.path, job.path.name, saved, "auto", None, shared
+        )
         answer["item"] = request.path_params["item"]
         self._remember(job, not answer.get("clicks") and answer.get("summary", {}).get("uncertain"))
         return JSONResponse(answer)
@@ -488,7 +498,8 @@ class _Api(clips.ClipEndpoints):
             with self.state.folder_lock:
                 _refuse_links(job, self.state.folder)
                 # Clicks say what the subject is; reverted, automatic finding's doubt is back.
-                self._remember(job, engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels))
+                shared = self.state.cuts.of(job.path.name)
+                self._remember(job, engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels, shared))
 
         await self.job(photo.name, save)
         return JSONResponse(self.item_entry(request.path_params["item"], job))

@@ -237,16 +237,19 @@ def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
     return cv2.resize(picture, target, interpolation=cv2.INTER_AREA)
 
 
-def open_photo(path: Path | np.ndarray, name: str, max_pixels: int, subject: str = "auto") -> Photo:
+def open_photo(
+    path: Path | np.ndarray, name: str, max_pixels: int, subject: str = "auto", shared: SharedHypotheses | None = None
+) -> Photo:
     """Decode and segment a file (an upload's temporary copy, or a folder's photo) or
     decoded pixels (a clip's first frame); ``subject``: what automatic finding looks for
-    (``--subject``).
+    (``--subject``); ``shared``: the photo's hypotheses when they may be cut already
+    (a folder photo's, see :class:`.store.FolderCuts`).
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """
     from jeanscv.subject.photo import SharedHypotheses
 
-    shared = SharedHypotheses()  # auto's hypotheses, cut once for the click session too
+    shared = shared or SharedHypotheses()  # auto's hypotheses, cut once for the click session too
     silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels, shared=shared, subject=subject)
     if kind == "silhouette":
         first = silhouettes[0]
@@ -492,17 +495,23 @@ def output_stale(job: Job) -> bool:
     return "image" in worker.wanted_outputs(job, JeansOptions(), overwrite=False)
 
 
-def write_folder_outputs(job: Job, backend: str | None, max_pixels: int) -> bool | None:
+def write_folder_outputs(
+    job: Job, backend: str | None, max_pixels: int, shared: SharedHypotheses | None = None
+) -> bool | None:
     """Make the folder photo's output as ``jeanscv FOLDER`` does (its saved clicks
-    included); JeansError with the failure's one-line reason. Returns whether its
+    included), with auto's hypotheses from ``shared`` where they are cut already (the
+    same bytes); JeansError with the failure's one-line reason. Returns whether its
     subject may be the wrong thing (None where that does not apply: clicks or a drawing)."""
-    outcome = worker.process(job, JeansOptions(backend=backend, max_pixels=max_pixels), overwrite=True)
+    options = JeansOptions(backend=backend, max_pixels=max_pixels)
+    outcome = worker.process(job, options, overwrite=True, shared=shared)
     if outcome.status == "failed":
         raise JeansError(outcome.error)
     return outcome.info.get("uncertain")
 
 
-def save_clicks(job: Job, clicks: Clicks | None, backend: str | None, max_pixels: int) -> bool:
+def save_clicks(
+    job: Job, clicks: Clicks | None, backend: str | None, max_pixels: int, shared: SharedHypotheses | None = None
+) -> bool:
     """Save the folder photo's clicks beside it, then make its output from them as the
     command line does; JeansError with the reason when that fails. ``clicks`` None
     reverts the photo to automatic: its clicks file is removed and the output made again.
@@ -515,7 +524,7 @@ def save_clicks(job: Job, clicks: Clicks | None, backend: str | None, max_pixels
             sidecar.unlink()
         except FileNotFoundError:
             pass
-    uncertain = write_folder_outputs(job, backend, max_pixels)
+    uncertain = write_folder_outputs(job, backend, max_pixels, shared)
     return clicks is None and bool(uncertain)
 
 
