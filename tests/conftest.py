@@ -13,6 +13,7 @@ import hashlib
 import importlib.util
 import os
 import shutil
+import signal
 import threading
 from collections import OrderedDict
 from pathlib import Path
@@ -25,6 +26,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+
+# A suite started from a background job (`nohup ... &`, or `&` in a script) begins with
+# Ctrl-C ignored, and every process the tests start inherits that: the tests that send
+# one (a command interrupted as it starts, a batch stopped half way) then saw it ignored
+# ("not stopped", status 0). Ctrl-C is what it is on a terminal; its children inherit
+# the default.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "silhouettes"
