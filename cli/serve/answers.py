@@ -1,12 +1,17 @@
-"""How the server says no, and names a download: the one-line JSON refusal (no path of
-this machine in it) and the Content-Disposition of a download. Shared by the HTTP layer
-(:mod:`.app`) and its clip endpoints (:mod:`.clips`)."""
+"""How the server says no, names a download and reads a JSON body: the one-line JSON
+refusal (no path of this machine in it), the Content-Disposition of a download and a
+request's JSON object. Shared by the HTTP layer
+(:mod:`.app`) and its clip and folder endpoints (:mod:`.clips`, :mod:`.folder`)."""
 
 from __future__ import annotations
 
+import json
 import re
 
+from starlette.requests import Request
 from starlette.responses import JSONResponse
+
+from jeanscv.errors import JeansError
 
 
 class Refused(Exception):
@@ -38,4 +43,16 @@ def attachment(filename: str) -> str:
     return f'attachment; filename="{ascii_name}"'
 
 
-__all__ = ["Refused", "attachment", "client_text", "error"]
+async def json_object(request: Request) -> dict:
+    """The request's JSON object body, else JeansError saying why."""
+    body = await request.body()
+    try:
+        data = json.loads(body or b"{}")
+    except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: brackets nested 100,000 deep
+        raise JeansError("the request body is not valid JSON") from None
+    if not isinstance(data, dict):
+        raise JeansError("expected a JSON object")
+    return data
+
+
+__all__ = ["Refused", "attachment", "client_text", "error", "json_object"]

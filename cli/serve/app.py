@@ -6,10 +6,8 @@ of photos: no file path is ever built from what a client sends.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
-import stat
 import tempfile
 import threading
 from contextlib import asynccontextmanager
@@ -26,10 +24,11 @@ from starlette.routing import Route
 from jeanscv.errors import JeansError
 from jeanscv.options import SUBJECTS
 
-from . import clips, engine
+from . import clips, engine, folder
 from .answers import Refused, client_text  # noqa: F401 - client_text: the tests' name for it
 from .answers import attachment as _attachment
 from .answers import error as _error
+from .answers import json_object as _json_object
 from .guard import UNEXPECTED, BodyRefused, Guard, TooLarge, log_unexpected, own_names
 from .store import Busy, FolderCuts, Pool, Stopping, Store, TooSlow
 
@@ -68,7 +67,6 @@ _STATIC = (
     | {f"/static/{name}": (name, "text/javascript; charset=utf-8") for name in _SCRIPTS}
     | {"/static/style.css": ("style.css", "text/css; charset=utf-8")}
 )
-_THUMB_SIDE = 480
 
 
 @dataclass
@@ -163,19 +161,7 @@ def _suffix(name: str) -> str:
     return suffix if suffix in SUPPORTED_EXTENSIONS | SVG_EXTENSIONS | CLIP_EXTENSIONS else ".img"
 
 
-async def _json_object(request: Request) -> dict:
-    """The request's JSON object body, else JeansError saying why."""
-    body = await request.body()
-    try:
-        data = json.loads(body or b"{}")
-    except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: brackets nested 100,000 deep
-        raise JeansError("the request body is not valid JSON") from None
-    if not isinstance(data, dict):
-        raise JeansError("expected a JSON object")
-    return data
-
-
-class _Api(clips.ClipEndpoints):
+class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
     """The endpoints of one server (a method a route) and the jobs they give its pool,
     over the server's :class:`State`."""
 
@@ -392,118 +378,6 @@ class _Api(clips.ClipEndpoints):
     # Folder mode reads and writes only plain files directly in the folder: a photo,
     # output or clicks file that is a symbolic link (from an archive or a clone) is
     # never followed, so nothing outside the folder is read through one.
-    def folder_items(self) -> list:
-        return [job for job in engine.folder_jobs(self.config.folder) if _plain_file_in(job.path, self.state.folder)]
-
-    def folder_job(self, request: Request):
-        if self.config.folder is None:
-            return None
-        index = request.path_params["item"]
-        jobs = self.folder_items()
-        return jobs[index] if 0 <= index < len(jobs) else None
-
-    def item_entry(self, index: int, job) -> dict:
-        return {
-            "item": index,
-            "name": str(job.path.relative_to(self.config.folder)),
-            "output": _plain_file_in(job.outputs["image"], self.state.folder),
-            "clicks": engine.saved_clicks(job) is not None,
-            "thumb": f"/api/folder/{index}/thumb",
-            # Whether its subject may be the wrong thing: None until known (its output
-            # made or the photo opened by this server), False once clicked.
-            "uncertain": self.state.unsure.get(job.path.name),
-        }
-
-    async def folder_list(self, request: Request) -> Response:
-        if self.config.folder is None:
-            return _error(404, "not serving a folder (start with: jeanscv serve FOLDER)")
-        jobs = self.folder_items()
-        return JSONResponse(
-            {"folder": self.config.folder.name, "items": [self.item_entry(i, j) for i, j in enumerate(jobs)]}
-        )
-
-    def thumbnail(self, job) -> bytes:
-        """The item's output as a thumbnail, made first when missing or stale, and made
-        again when the file there cannot be read (a damaged output is not kept)."""
-        output = job.outputs["image"]
-        with self.state.folder_lock:
-            _refuse_links(job, self.state.folder)
-            if engine.output_stale(job):
-                self._write_outputs(job)
-            try:
-                return engine.thumbnail(output, _THUMB_SIDE)
-            except JeansError:
-                self._write_outputs(job)
-                return engine.thumbnail(output, _THUMB_SIDE)
-
-    def _write_outputs(self, job) -> None:
-        shared = self.state.cuts.of(job.path.name)
-        self._remember(job, engine.write_folder_outputs(job, self.state.backend, self.config.max_pixels, shared))
-
-    def _remember(self, job, uncertain: bool | None) -> None:
-        """Keep a folder item's ``uncertain`` for the listing (clicks count as sure)."""
-        self.state.unsure[job.path.name] = bool(uncertain)
-
-    async def folder_thumb(self, request: Request) -> Response:
-        job = self.folder_job(request)
-        if job is None:
-            return _error(404, "no such photo in the folder")
-        made = await self.job(job.path.name, self.thumbnail, job)
-        return Response(made, media_type="image/jpeg", headers={"Cache-Control": "no-cache"})
-
-    async def folder_open(self, request: Request) -> Response:
-        job = self.folder_job(request)
-        if job is None:
-            return _error(404, "no such photo in the folder")
-
-        def saved(photo):
-            clicks = engine.saved_clicks(job)
-            if clicks is None or photo.kind != "photo":
-                return None
-            try:
-                clicks.check(photo.size)
-            except JeansError:
-                return None
-            return clicks
-
-        shared = self.state.cuts.of(job.path.name)  # cut already for its thumbnail, or now for its outputs too
-        answer = await self.job(
-            job.path.name, self.open_and_render, job.path, job.path.name, saved, "auto", None, shared
-        )
-        answer["item"] = request.path_params["item"]
-        self._remember(job, not answer.get("clicks") and answer.get("summary", {}).get("uncertain"))
-        return JSONResponse(answer)
-
-    async def folder_save(self, request: Request) -> Response:
-        job = self.folder_job(request)
-        if job is None:
-            return _error(404, "no such photo in the folder")
-        try:
-            data = await _json_object(request)
-        except JeansError as exc:
-            return _error(422, str(exc))
-        photo = self.state.photos.get(str(data.get("photo", "")))
-        if photo is None:
-            return _error(404, "no such photo (it may have expired: open it again)")
-        if photo.name != job.path.name:
-            return _error(422, "this photo is not that folder item")
-        try:
-            clicks = engine.clicks_from_json(data.get("objects"), photo.size)
-            if clicks is None and data.get("revert") is not True:  # reverting to automatic is said outright
-                raise JeansError("no clicks to save: click the subject first")
-        except JeansError as exc:
-            return _error(422, f"{photo.name}: {exc}")
-
-        def save() -> None:
-            with self.state.folder_lock:
-                _refuse_links(job, self.state.folder)
-                # Clicks say what the subject is; reverted, automatic finding's doubt is back.
-                shared = self.state.cuts.of(job.path.name)
-                self._remember(job, engine.save_clicks(job, clicks, self.state.backend, self.config.max_pixels, shared))
-
-        await self.job(photo.name, save)
-        return JSONResponse(self.item_entry(request.path_params["item"], job))
-
     @asynccontextmanager
     async def lifespan(self, app):
         self.state.open()
@@ -589,26 +463,3 @@ def _prepare_hover(photo) -> None:
         engine.hover_map(photo)
     except Exception:  # noqa: BLE001 - the page's request for it will report it
         pass
-
-
-def _plain_file_in(path: Path, folder: Path) -> bool:
-    """Whether ``path`` is a regular file, not a symbolic link, directly in ``folder``."""
-    try:
-        info = os.lstat(path)
-    except OSError:
-        return False
-    return stat.S_ISREG(info.st_mode) and path.parent.resolve() == folder
-
-
-def _refuse_links(job, folder: Path) -> None:
-    """JeansError when the photo, its output or its clicks file is a symbolic link (or
-    not in the folder): folder mode reads and writes only the folder's own files."""
-    from jeanscv.subject.clicks import sidecar_path
-
-    for path in (job.path, job.outputs["image"], sidecar_path(job.path)):
-        if path.is_symlink():
-            raise JeansError(
-                f"{path.name} is a symbolic link: not followed (folder mode reads only the folder's files)"
-            )
-    if not _plain_file_in(job.path, folder):
-        raise JeansError("not a file of the folder")

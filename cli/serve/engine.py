@@ -1,16 +1,16 @@
-"""The server's one adapter to the library and the command line's worker.
+"""The server's adapter to the library and the command line's worker for a photo.
 
 Everything the page does to a photo goes through here: decode an upload, the
-automatic result, a result from clicks, the full-resolution downloads, and a folder
-photo's outputs. The HTTP layer (:mod:`.app`) never calls :mod:`jeanscv` itself.
+automatic result, a result from clicks and the full-resolution downloads. The HTTP
+layer (:mod:`.app`) never calls :mod:`jeanscv` itself; its clip and folder endpoints
+(:mod:`.clips`, :mod:`.folder`) call the command line's own clip maker and worker.
 
 Clicks become silhouettes in :func:`silhouettes_from_clicks`: the photo keeps one
 ``ClickSession`` (the library's ``extract_silhouettes(clicks=...)`` makes a new one per
 call, half a second on a 12-MP photo), made with the hypotheses that the automatic
 segmentation cut when the photo was opened (cut once:
 :class:`~jeanscv.subject.photo.SharedHypotheses`), and each object is segmented and
-framed as the library does it, so the page's result is the command line's. A folder's outputs are made
-by the command line's own worker, which reads the clicks saved beside the photo.
+framed as the library does it, so the page's result is the command line's.
 
 Coordinates sent to and from the page are pixels of the photo as displayed (x right,
 y down, package convention); the interactive preview is a copy whose long side is at
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -36,7 +35,7 @@ from jeanscv.errors import JeansError
 from jeanscv.options import POSTURES, STYLES, JeansOptions
 from jeanscv.run.runner import encode_picture, report_text
 from jeanscv.subject.clicks import VERSION as CLICKS_VERSION
-from jeanscv.subject.clicks import Clicks, read_clicks, sidecar_path, write_clicks
+from jeanscv.subject.clicks import Clicks
 from jeanscv.subject.framing import Framing
 from jeanscv.subject.silhouettes import box_of
 
@@ -460,72 +459,7 @@ def report_summary(photo: Photo, objects: list) -> dict:
     return summary
 
 
-# ------------------------------------------------------------------------- folder mode
-
-
-def folder_jobs(folder: Path) -> list[Job]:
-    """The folder's photos as the command line finds them (``jeanscv FOLDER``), in order;
-    not its videos, which the page cannot show (a GIF opens on its first frame)."""
-    from jeanscv.io.clip_names import CLIP_EXTENSIONS
-
-    from ..discover import collect
-
-    videos = CLIP_EXTENSIONS - {".gif"}
-    return [
-        job for job in collect([str(folder)]).jobs if isinstance(job, Job) and job.path.suffix.lower() not in videos
-    ]
-
-
-def saved_clicks(job: Job) -> Clicks | None:
-    """The photo's clicks sidecar, when it has a usable one (the command line's rule for
-    which file that is: :func:`jeanscv_cli.worker.saved_clicks`); never one that is a
-    symbolic link (folder mode reads only the folder's own files)."""
-    path = worker.saved_clicks(job, JeansOptions())
-    if path is None or path.is_symlink():
-        return None
-    try:
-        return read_clicks(path)
-    except JeansError:
-        return None
-
-
-def output_stale(job: Job) -> bool:
-    """Whether the folder photo's output is missing, or older than its clicks sidecar
-    (the command line's rule: it would redo it)."""
-    return "image" in worker.wanted_outputs(job, JeansOptions(), overwrite=False)
-
-
-def write_folder_outputs(
-    job: Job, backend: str | None, max_pixels: int, shared: SharedHypotheses | None = None
-) -> bool | None:
-    """Make the folder photo's output as ``jeanscv FOLDER`` does (its saved clicks
-    included), with auto's hypotheses from ``shared`` where they are cut already (the
-    same bytes); JeansError with the failure's one-line reason. Returns whether its
-    subject may be the wrong thing (None where that does not apply: clicks or a drawing)."""
-    options = JeansOptions(backend=backend, max_pixels=max_pixels)
-    outcome = worker.process(job, options, overwrite=True, shared=shared)
-    if outcome.status == "failed":
-        raise JeansError(outcome.error)
-    return outcome.info.get("uncertain")
-
-
-def save_clicks(
-    job: Job, clicks: Clicks | None, backend: str | None, max_pixels: int, shared: SharedHypotheses | None = None
-) -> bool:
-    """Save the folder photo's clicks beside it, then make its output from them as the
-    command line does; JeansError with the reason when that fails. ``clicks`` None
-    reverts the photo to automatic: its clicks file is removed and the output made again.
-    Returns whether the photo may have the wrong subject (never, with clicks)."""
-    sidecar = sidecar_path(job.path)
-    if clicks is not None:
-        write_clicks(sidecar, clicks)
-    else:
-        try:
-            sidecar.unlink()
-        except FileNotFoundError:
-            pass
-    uncertain = write_folder_outputs(job, backend, max_pixels, shared)
-    return clicks is None and bool(uncertain)
+# ------------------------------------------------------------------------- page clicks
 
 
 def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
@@ -546,42 +480,6 @@ def clicks_from_json(data, size: tuple[int, int]) -> Clicks | None:
     document = {"format": "jeanscv-clicks", "version": CLICKS_VERSION, "objects": objects}
     clicks = parse_clicks(json.loads(json.dumps(document)))
     return Clicks(clicks.objects, (int(size[0]), int(size[1])))
-
-
-#: Largest output file a thumbnail is made from (a 100-MP PNG is about 300 MB).
-MAX_THUMB_SOURCE = 512 << 20
-
-
-def thumbnail(path: Path, side: int) -> bytes:
-    """A JPEG of an output picture with its long side at most ``side`` (for the gallery).
-
-    The file is opened without following a symbolic link and must be a regular file;
-    JeansError (naming only the file) when it cannot be read or decoded.
-    """
-    from jeanscv.io.files import open_regular
-
-    try:
-        file = open_regular(path, follow_links=False)
-    except OSError as exc:
-        raise JeansError(f"cannot read {path.name} ({(exc.strerror or 'error').lower()})") from None
-    with file:
-        if os.fstat(file.fileno()).st_size > MAX_THUMB_SOURCE:
-            raise JeansError(f"cannot read {path.name} (not a picture file of a usable size)")
-        data = file.read()
-    try:
-        with Image.open(io.BytesIO(data), formats=("JPEG", "PNG", "WEBP", "TIFF")) as image:
-            image.draft("RGB", (side, side))
-            image = image.convert("RGBA") if image.mode in ("RGBA", "LA", "P") else image.convert("RGB")
-            image.thumbnail((side, side))
-            if image.mode == "RGBA":
-                white = Image.new("RGB", image.size, (255, 255, 255))
-                white.paste(image, mask=image.getchannel("A"))
-                image = white
-            buffer = io.BytesIO()
-            image.save(buffer, "JPEG", quality=85)
-    except (OSError, SyntaxError, ValueError, EOFError, Image.DecompressionBombError):
-        raise JeansError(f"{path.name} is damaged") from None
-    return buffer.getvalue()
 
 
 # ------------------------------------------------------------------------- hover preview
