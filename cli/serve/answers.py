@@ -1,7 +1,7 @@
 """How the server says no, names a download and reads a JSON body: the one-line JSON
 refusal (no path of this machine in it), the Content-Disposition of a download and a
-request's JSON object. Shared by the HTTP layer
-(:mod:`.app`) and its clip and folder endpoints (:mod:`.clips`, :mod:`.folder`)."""
+request's JSON object. Shared by the HTTP layer (:mod:`.app`) and its clip and folder
+endpoints (:mod:`.clips`, :mod:`.folder`)."""
 
 from __future__ import annotations
 

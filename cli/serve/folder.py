@@ -268,8 +268,6 @@ def _plain_file_in(path: Path, folder: Path) -> bool:
 def _refuse_links(job, folder: Path) -> None:
     """JeansError when the photo, its output or its clicks file is a symbolic link (or
     not in the folder): folder mode reads and writes only the folder's own files."""
-    from jeanscv.subject.clicks import sidecar_path
-
     for path in (job.path, job.outputs["image"], sidecar_path(job.path)):
         if path.is_symlink():
             raise JeansError(

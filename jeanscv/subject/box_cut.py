@@ -98,7 +98,8 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
             jobs["geodesic"] = pool.submit(_cut, small, geodesic)
         cuts = {name: job.result() & inside for name, job in jobs.items()}
     chosen = max(cuts, key=lambda name: (_score(small, cuts[name], inner), name == "box"))
-    if _reach(cuts[chosen], inner) < _MIN_REACH:
+    reach = _reach(cuts[chosen], inner)
+    if reach < _MIN_REACH:
         # Both starts collapsed (two black-and-white cats in a box of the same colours as
         # its margin gave nothing at all): a tight box's centre is the object, so cut
         # again with it held as the object. That answer is kept where it spans more of
@@ -107,7 +108,7 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
         start = _core_start(labels, inner)
         core = _cut(small, start) & inside
         given = np.count_nonzero(start == cv2.GC_FGD)
-        if _reach(core, inner) > _reach(cuts[chosen], inner) and np.count_nonzero(core) >= 2 * given:
+        if _reach(core, inner) > reach and np.count_nonzero(core) >= 2 * given:
             cuts[chosen] = core
     # Only the box of the crop: the resized cut may spill over its edge into the margin.
     found = np.zeros((height, width), bool)
