@@ -426,6 +426,35 @@ def test_the_core_start_holds_an_ellipse_round_the_boxs_centre():
     assert np.array_equal(start, expected)
 
 
+def test_the_geodesic_start_is_the_distance_from_both_sides_of_the_boxs_edge():
+    """_geodesic_start searches within the box from its inner ring only; the reference
+    searches the whole crop from the ring on both sides of the box's edge (the two
+    pixel-wide band of the earlier version). A path into the box crosses the inner ring,
+    so the labels are the same, pixel for pixel."""
+    from skimage.graph import MCP_Geometric
+
+    from jeanscv.subject.box_cut import _NEAR_EDGE, _geodesic_start
+    from jeanscv.subject.click_parts import gradient_cost
+
+    rng = np.random.default_rng(3)
+    small = np.clip(rng.normal(110, 25, (60, 80, 3)), 0, 255).astype(np.uint8)
+    small[20:45, 25:60] = (200, 60, 40)
+    for box in ((8, 6, 72, 54), (0, 0, 80, 60), (30, 10, 79, 59)):
+        x0, y0, x1, y1 = box
+        inside = np.zeros((60, 80), bool)
+        inside[y0:y1, x0:x1] = True
+        labels = np.where(inside, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
+        three = np.ones((3, 3), np.uint8)
+        grown = cv2.dilate(inside.astype(np.uint8), three).astype(bool)
+        shrunk = cv2.erode(inside.astype(np.uint8), three, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        edge = [tuple(p) for p in np.argwhere(grown & ~shrunk.astype(bool))]
+        distance = MCP_Geometric(gradient_cost(small)).find_costs(edge)[0]
+        expected = labels.copy()
+        near = inside & (distance < _NEAR_EDGE * np.percentile(distance[inside], 99))
+        expected[near] = cv2.GC_PR_BGD
+        assert np.array_equal(_geodesic_start(small, labels, box), expected)
+
+
 def test_a_box_whose_starts_collapse_is_cut_again_from_its_centre(monkeypatch):
     """Where both starts give nothing (two cats in a box of the margin's colours), the
     box is cut again with its centre held as the object: a red square on green ground

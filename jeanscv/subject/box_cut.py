@@ -93,7 +93,7 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
     # box's own start already cutting while the geodesic one is made.
     with cut_pool() as pool:
         jobs = {"box": pool.submit(_cut, small, labels)}
-        geodesic = _geodesic_start(small, labels, inside)
+        geodesic = _geodesic_start(small, labels, inner)
         if geodesic is not None:
             jobs["geodesic"] = pool.submit(_cut, small, geodesic)
         cuts = {name: job.result() & inside for name, job in jobs.items()}
@@ -185,25 +185,30 @@ def _cut(small: np.ndarray, labels: np.ndarray) -> np.ndarray:
         return np.zeros(labels.shape, bool)
 
 
-def _geodesic_start(small: np.ndarray, labels: np.ndarray, inside: np.ndarray) -> np.ndarray | None:
-    """``labels`` with the box pixels that the box's edge reaches cheaply (geodesic
-    distance along the Lab gradient under ``_NEAR_EDGE`` of its 99th percentile) made
-    probably background; None when that leaves either side empty."""
+def _geodesic_start(small: np.ndarray, labels: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray | None:
+    """``labels`` with the pixels of ``box`` (``(x0, y0, x1, y1)`` of the copy) that its
+    edge reaches cheaply (geodesic distance along the Lab gradient under ``_NEAR_EDGE``
+    of its 99th percentile) made probably background; None when that leaves either side
+    empty.
+
+    The distances run from the box's inner ring within the box alone: a path from the
+    ring out of the box and back crosses the ring again, where it could as well have
+    started, so they are the distances from the ring on both sides of the edge over the
+    whole crop: the same labels, on the 104 crops of the shared photos (each reference
+    mask's box, and the whole frame) a mean 0.051 s against 0.065 s."""
     from skimage.graph import MCP_Geometric  # only when a box is drawn
 
-    three = np.ones((3, 3), np.uint8)
-    eight = inside.astype(np.uint8)
-    grown = cv2.dilate(eight, three).astype(bool)
-    shrunk = cv2.erode(eight, three, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
-    edge = np.argwhere(grown & ~shrunk)  # the box's edge, either side of it
-    distance = MCP_Geometric(gradient_cost(small)).find_costs([tuple(p) for p in edge])[0]
-    inner = distance[inside]
-    near = np.zeros_like(inside)
-    near[inside] = inner < _NEAR_EDGE * np.percentile(inner, 99)
-    if not near.any() or near[inside].all():
+    x0, y0, x1, y1 = box
+    cost = gradient_cost(small)[y0:y1, x0:x1]  # the gradient as over the whole crop
+    h, w = cost.shape
+    ring = np.ones((h, w), bool)
+    ring[1:-1, 1:-1] = False
+    distance = MCP_Geometric(cost).find_costs([tuple(p) for p in np.argwhere(ring)])[0]
+    near = distance < _NEAR_EDGE * np.percentile(distance, 99)
+    if not near.any() or near.all():
         return None
     start = labels.copy()
-    start[near] = cv2.GC_PR_BGD
+    start[y0:y1, x0:x1][near] = cv2.GC_PR_BGD
     return start
 
 
