@@ -54,6 +54,17 @@ def photo_pairs(folders: list[Path]) -> list[tuple[str, Path, Path]]:
     return pairs
 
 
+def photo_sets(folders: list[Path]) -> list[tuple[Path, list[tuple[str, Path, Path]]]]:
+    """(folder, its :func:`photo_pairs`) for each folder that has any (default: both
+    shared sets); exits saying so when none has."""
+    folders = folders or [SHARED, PETS]
+    sets = [(folder, photo_pairs([folder])) for folder in folders if folder.is_dir()]
+    sets = [(folder, pairs) for folder, pairs in sets if pairs]
+    if not sets:
+        raise SystemExit(f"no NAME.mask.png with a photo beside it in {', '.join(map(str, folders))}")
+    return sets
+
+
 def reference_box(reference: np.ndarray) -> tuple[int, int, int, int]:
     """The tight box ``(x0, y0, x1, y1)`` of the reference mask (end exclusive), as a person drags it."""
     ys, xs = np.nonzero(reference)
@@ -156,11 +167,7 @@ def main() -> None:
     parser.add_argument("--box", action="store_true", help="a box (the reference mask's) first, then the clicks")
     parser.add_argument("--width", type=int, help="resize every photo to this width first")
     args = parser.parse_args()
-    folders = args.folders or [SHARED, PETS]
-    sets = [(folder, photo_pairs([folder])) for folder in folders if folder.is_dir()]
-    sets = [(folder, pairs) for folder, pairs in sets if pairs]
-    if not sets:
-        raise SystemExit(f"no NAME.mask.png with a photo beside it in {', '.join(map(str, folders))}")
+    sets = photo_sets(args.folders)
     sheets = {folder: _sheet_path(args.sheet, folder, len(sets) > 1) for folder, _ in sets}
     means = [(folder, run_set(pairs, args, sheets[folder])) for folder, pairs in sets]
     if len(means) > 1 or args.box:
