@@ -206,6 +206,39 @@ def test_grabcut_without_hint_finds_a_coloured_disc():
     assert iou(result.mask, truth) >= 0.97
 
 
+def test_orchard_bouman_splits_five_colour_clusters_apart():
+    """Five clusters of four colours each, red 10, 40, 130, 160 and 250 (green and blue
+    100 plus a little): all of them are cut at their mean red, 118, into {10, 40} and
+    {130, 160, 250}; the wider, {130, 160, 250}, at 180; then {10, 40} and {130, 160},
+    as wide as each other, at 25 and 145. Five clusters, the five (which gets which
+    label number is the eigenvectors' sign)."""
+    import cv2
+
+    from jeanscv.subject.grabcut import orchard_bouman, orchard_bouman_models
+
+    centres = np.array([(10, 100, 100), (40, 100, 100), (130, 100, 100), (160, 100, 100), (250, 100, 100)])
+    jitter = np.array([(0, 0, 0), (0, 2, 0), (0, 0, 2), (0, 2, 2)])
+    colours = (centres[:, None, :] + jitter[None]).reshape(-1, 3)
+    truth = np.repeat(np.arange(5), 4)
+    labels = orchard_bouman(colours)
+    assert sorted(set(labels)) == [0, 1, 2, 3, 4]
+    assert all(len(set(labels[truth == t])) == 1 for t in range(5))
+    assert np.array_equal(labels, orchard_bouman(colours[::1]))  # no randomness
+    # The models of an image whose object holds those colours and whose ground is one
+    # grey: weights 0.2 each and the clusters' means; the ground's single colour is one
+    # cluster (nothing left to cut) and its covariance the 0.01 added to the diagonal.
+    image = np.full((4, 10, 3), 128, np.uint8)
+    image[:2] = colours.reshape(2, 10, 3)
+    labels_map = np.full((4, 10), cv2.GC_BGD, np.uint8)
+    labels_map[:2] = cv2.GC_PR_FGD
+    background, foreground = orchard_bouman_models(image, labels_map)
+    assert np.allclose(np.sort(foreground[0, :5]), 0.2)
+    means = foreground[0, 5:20].reshape(5, 3)
+    assert np.allclose(np.sort(means, axis=0), np.sort(centres + jitter.mean(axis=0), axis=0))
+    assert background[0, 0] == 1.0 and np.allclose(background[0, 5:8], 128)
+    assert np.allclose(background[0, 20:29].reshape(3, 3), 0.01 * np.eye(3))
+
+
 def test_rect_must_be_a_box_inside_the_image():
     image, _, _ = _two_objects()
     for bad in ((0, 0, 240, 160), (10, 10, 0, 5), (300, 10, 20, 20), (1, 2, 3)):

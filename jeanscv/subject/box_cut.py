@@ -7,19 +7,20 @@ Arrays: images ``(H, W, 3)`` RGB ``uint8``; masks ``(H, W) bool``; boxes ``(x0, 
 y1)`` whole pixels of the array, end exclusive.
 
 How: GrabCut (Rother et al. 2004) on a crop of the box and a margin round it, so the
-background's colour model is learned from what surrounds the object rather than from
-the whole photo. GrabCut settles in a local optimum that depends on where it starts, so
-it starts twice: everything in the box "probably the object" (GrabCut's own start), and
-with what the box's edge reaches cheaply along the image's gradients "probably
-background" (the background spreads in from the box's sides: boundary connectivity,
-Zhu et al. 2014). Of the two answers the one kept has the best colour separation from
-the rest of the crop times its reach across the box: a tight box's object crosses every
-row and column of it (the tight-box prior, Lempitsky et al. 2009), which rules out a cut
-that collapsed to a corner or to nothing. Where the answer kept still crosses fewer than
-half the box's rows or columns, the crop is cut a third time with an ellipse round the
-box's centre held as the object (the same prior: the object is there). Every piece is
-kept, holes stay holes: the box, not the largest piece, says what the object is (a
-bicycle's wheels, a lamp's arm).
+background's colour model is learned from what surrounds the object rather than from the
+whole photo. GrabCut settles in a local optimum that depends on where it starts: its
+colour models start from Orchard and Bouman's clustering, which has no randomness (a
+photo and its 12-MP copy are cut alike), and it starts twice: everything in the box
+"probably the object" (GrabCut's own start), and with what the box's edge reaches
+cheaply along the image's gradients "probably background" (the background spreads in
+from the box's sides: boundary connectivity, Zhu et al. 2014). Of the two answers the
+one kept has the best colour separation from the rest of the crop times its reach across
+the box: a tight box's object crosses every row and column of it (the tight-box prior,
+Lempitsky et al. 2009), which rules out a cut that collapsed to a corner or to nothing.
+Where the answer kept still crosses fewer than half the box's rows or columns, the crop
+is cut a third time with an ellipse round the box's centre held as the object (the same
+prior: the object is there). Every piece is kept, holes stay holes: the box, not the
+largest piece, says what the object is (a bicycle's wheels, a lamp's arm).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 
 from .click_parts import gradient_cost, seeded_grabcut, small_copy
-from .grabcut import cut_pool, run_grabcut
+from .grabcut import cut_pool, orchard_bouman_models, run_grabcut
 from .masks import downscale, resize_mask, shape_for
 
 #: The crop is cut on a copy this long. On the shared photos (a box from each reference
@@ -178,9 +179,11 @@ def _with_margin(box: tuple[int, int, int, int], shape: tuple[int, int]) -> tupl
 
 
 def _cut(small: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """GrabCut from ``labels``; nothing where it cannot start."""
+    """GrabCut from ``labels``, its colour models started by Orchard and Bouman's
+    clustering (no randomness: the same box on a photo and on a resampled copy of it is
+    cut the same way); nothing where it cannot start."""
     try:
-        return run_grabcut(small, labels, ITERATIONS)
+        return run_grabcut(small, labels, ITERATIONS, start=orchard_bouman_models(small, labels))
     except JeansError:
         return np.zeros(labels.shape, bool)
 
