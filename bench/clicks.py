@@ -128,6 +128,12 @@ def upscale(pixels: np.ndarray, reference: np.ndarray, megapixels: float) -> tup
     return big, mask
 
 
+def resize_to_width(pixels: np.ndarray, reference: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """``pixels`` and ``reference`` resized to ``width`` pixels wide, keeping the aspect
+    (:func:`upscale` at the matching megapixels)."""
+    return upscale(pixels, reference, width**2 * reference.shape[0] / reference.shape[1] / 1e6)
+
+
 def contact_sheet(rows: list[tuple[str, np.ndarray, np.ndarray, list, float]], path: Path, clicks: int = 3) -> None:
     """A grid of photos after ``clicks`` clicks: the mask tinted, its outline, the clicks
     (green positive, red negative) and the IoU."""
@@ -209,9 +215,7 @@ def run_set(pairs: list, args, sheet_path: Path | None = None) -> str:
         if args.megapixels:
             pixels, reference = upscale(pixels, reference, args.megapixels)
         if args.width:
-            pixels, reference = upscale(
-                pixels, reference, args.width**2 * reference.shape[0] / reference.shape[1] / 1e6
-            )
+            pixels, reference = resize_to_width(pixels, reference, args.width)
         result = run_photo(pixels, reference, args.clicks, box=args.box)
         result["ious"] = ious = result["ious"] + [result["ious"][-1]] * (MAX_CLICKS - len(result["ious"]))
         result["noc85"], result["noc90"] = noc(ious, 0.85), noc(ious, 0.90)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from bench.clicks import photo_sets, reference_box, upscale
+from bench.clicks import photo_sets, reference_box, resize_to_width
 from jeanscv.errors import JeansError
 from jeanscv.io.image import load_image
 from jeanscv.subject.consensus import iou
@@ -63,7 +63,7 @@ def run_set(pairs: list, width: int) -> str:
         pixels = np.ascontiguousarray(load_image(photo).pixels[..., :3])
         reference = np.asarray(Image.open(mask_path).convert("L")) >= 128
         _, (x, y) = simulated_click(reference, None)
-        big, big_reference = upscale(pixels, reference, width**2 * reference.shape[0] / reference.shape[1] / 1e6)
+        big, big_reference = resize_to_width(pixels, reference, width)
         factor = big_reference.shape[1] / reference.shape[1]
         own = measure(pixels, reference, (x, y))
         resized = measure(big, big_reference, (x * factor, y * factor))
