@@ -111,12 +111,12 @@ def orchard_bouman_models(image: np.ndarray, labels: np.ndarray) -> tuple[np.nda
     return _side_model(image[~fg]), _side_model(image[fg])
 
 
-def orchard_bouman(colours: np.ndarray, clusters: int = 5) -> np.ndarray:
+def orchard_bouman(colours: np.ndarray, clusters: int = _COMPONENTS) -> np.ndarray:
     """Cluster labels ``(N,)`` int32 of ``colours`` ``(N, 3)``: starting from one
     cluster, the one with the largest variance along its principal axis (eigenvalue
     times size) is cut in two at its mean, across that axis, until there are
     ``clusters`` (fewer where none has two colours left to cut)."""
-    colours = colours.astype(np.float64)
+    colours = np.asarray(colours, np.float64)  # no copy where it already is
     labels = np.zeros(len(colours), np.int32)
     for new in range(1, clusters):
         widest, cut = -1.0, None
@@ -145,7 +145,7 @@ def _side_model(colours: np.ndarray) -> np.ndarray:
     if len(colours) > _MODEL_SAMPLES:
         colours = colours[np.linspace(0, len(colours) - 1, _MODEL_SAMPLES).astype(int)]
     colours = colours.astype(np.float64)
-    labels = orchard_bouman(colours, _COMPONENTS)
+    labels = orchard_bouman(colours)
     weights, means, covariances = np.zeros(_COMPONENTS), np.zeros((_COMPONENTS, 3)), np.zeros((_COMPONENTS, 3, 3))
     for cluster in range(_COMPONENTS):
         members = colours[labels == cluster]
