@@ -647,6 +647,22 @@ def test_the_geodesic_grabcut_takes_the_clicked_shape_exactly():
     np.testing.assert_array_equal(geodesic_grabcut(image, [(120, 120)], [(200, 120)]), red)
 
 
+def test_the_first_clicks_region_box_takes_the_object_round_a_part_of_it():
+    """The first click's box candidate: the box round a 70x70 part of the 100x100 red
+    body, grown 1.5 times about its centre (105x105), holds the body, grey ground and a
+    strip of the blue head along its edge. What the box's edge does not reach cheaply is
+    the whole body and at most the pixels beside its outline (the 3x3 gradient straddles
+    the edge); the grey ground and the head's strip, which the edge reaches for nothing,
+    are out."""
+    image, body, head, disc = figure()
+    part = np.zeros_like(body)
+    part[95:165, 55:125] = True
+    found = session()._region_box(part)
+    beside = cv2.dilate(body.astype(np.uint8), np.ones((3, 3), np.uint8), iterations=2).astype(bool)
+    assert found[body].all() and not found[~beside].any()
+    assert not found[head & ~beside].any()
+
+
 # ------------------------------------------------------------------ the hover preview's map
 
 

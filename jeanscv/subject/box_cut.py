@@ -1,7 +1,7 @@
 """The object inside a box a person dragged round it: GrabCut on a crop, two starts (a
 third where both collapse).
 
-Public API: :func:`box_cut`, :func:`box_recut` and :func:`box_score` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
+Public API: :func:`box_cut`, :func:`box_interior`, :func:`box_recut` and :func:`box_score` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
 
 Arrays: images ``(H, W, 3)`` RGB ``uint8``; masks ``(H, W) bool``; boxes ``(x0, y0, x1,
 y1)`` whole pixels of the array, end exclusive.
@@ -160,6 +160,23 @@ def box_recut(
     return found
 
 
+def box_interior(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZE) -> np.ndarray:
+    """What the edge of ``box`` does not reach cheaply: the part of the box that
+    :func:`box_cut`'s geodesic start leaves probably the object, on a copy of the box
+    no longer than ``size``, without a GrabCut (a fifth of a small one's time). ``(H,
+    W)`` bool, False outside the box, and everywhere when the edge reaches all or none of it."""
+    x0, y0, x1, y1 = box
+    crop = rgb[y0:y1, x0:x1]
+    ch, cw = crop.shape[:2]
+    sw, sh = shape_for((ch, cw), size)
+    small = np.ascontiguousarray(downscale(crop, (sw, sh)))
+    start = _geodesic_start(small, np.full((sh, sw), cv2.GC_PR_FGD, np.uint8), (0, 0, sw, sh))
+    found = np.zeros(rgb.shape[:2], bool)
+    if start is not None:
+        found[y0:y1, x0:x1] = resize_mask(start == cv2.GC_PR_FGD, (cw, ch))
+    return found
+
+
 def box_score(rgb: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) -> float:
     """How good ``mask`` (``(H, W)`` bool) looks as the object in ``box`` of ``rgb``,
     without knowing the answer: :func:`_score` on the box's crop (the box and its
@@ -252,4 +269,4 @@ def _score(small: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) 
     return float((1.0 - np.sqrt(inner * outer).sum()) * reach)
 
 
-__all__ = ["box_cut", "box_recut", "box_score", "CUT_SIZE"]
+__all__ = ["box_cut", "box_interior", "box_recut", "box_score", "CUT_SIZE"]

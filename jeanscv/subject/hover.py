@@ -6,14 +6,15 @@ and :class:`FirstClickMap`.
 
 How: :meth:`ClickSession._first` chooses, for the clicked point, among the pieces of
 auto's hypotheses that hold it, a GrabCut seeded at the click, the geodesic region
-nearer the click than the border and a GrabCut seeded by that region, the candidate the
-others agree with most and the click lies deepest in. Here that choice is made once per
-superpixel (at its pixel nearest its centre), without the two GrabCuts (0.2 s a click:
-2,000 superpixels would take minutes): the hypotheses' pieces are cut once, the
-geodesic regions from one Dijkstra per superpixel, each only as far as it lies from
-the border, and agreement is counted per superpixel. Each region is a
-set of superpixels (a piece: the superpixels mostly in it), so the page draws it from
-the superpixel labels alone. ``bench/hover_preview.py`` measures how often the region
+nearer the click than the border, a GrabCut seeded by that region and what lies inside a
+box round it, the candidate the others agree with most and the click lies deepest in.
+Here that choice is made once per superpixel (at its pixel nearest its centre), without
+the two GrabCuts and the box round the geodesic region (0.2 s a click: 2,000
+superpixels would take minutes): the hypotheses' pieces are cut once, the geodesic
+regions from one Dijkstra per superpixel, each only as far as it lies from the border,
+and agreement is counted per superpixel. Each region is a set of superpixels (a piece:
+the superpixels mostly in it), so the page draws it from the superpixel labels alone.
+``bench/hover_preview.py`` measures how often the region
 shown is what the first click takes.
 """
 
