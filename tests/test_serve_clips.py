@@ -113,6 +113,25 @@ def test_making_a_clip_stops_at_the_time_limit(make_client):
     assert [p.suffix for p in state.tmp.iterdir()] == [".gif"]  # the upload only
 
 
+def test_a_clip_past_its_own_deadline_is_too_slow_as_the_pools_wait_says(make_client, tmp_path):
+    """The making checks its own deadline after each frame. On a busy machine that deadline
+    passes before the pool's wait for the job does (which starts when the server's loop
+    hears the job began), so it must be the same answer, TooSlow (504), not a bad-input
+    error (422), and keep nothing."""
+    from jeanscv_cli.serve import engine
+    from jeanscv_cli.serve.clips import make_clip
+    from jeanscv_cli.serve.store import TooSlow
+
+    client = make_client()
+    frames, _ = walking(frames=3)
+    opened = upload(client, "walk.gif", clip_bytes(frames, "gif", fps=10.0)).json()
+    state = client.app.app.state.jeanscv
+    photo = state.photos.get(opened["photo"])
+    with pytest.raises(TooSlow):
+        make_clip(photo, None, engine.RenderOptions(), None, ClipCaps(), 0.0, tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_another_site_cannot_make_or_read_a_clip(make_client):
     client = make_client()
     frames, _ = walking(frames=3)

@@ -30,6 +30,7 @@ from jeanscv.io.write import on_white
 
 from . import engine
 from .answers import Refused, attachment, error
+from .store import TooSlow
 
 #: Uploaded clips kept on disk for making (the oldest is removed for a newer one).
 CLIPS_KEPT = 4
@@ -131,7 +132,8 @@ def make_clip(
 ) -> tuple[bytes, str, dict]:
     """``(bytes, file name, summary)`` of the clip with its jeans: ``clicks`` (None:
     automatic) on frame 0, the page's options (captions and side by side on every
-    frame). Stops with JeansError past ``seconds`` or a cap."""
+    frame). Stops with :class:`~.store.TooSlow` past ``seconds`` (answered 504, as the
+    pool answers a job it stops waiting for), with JeansError at a cap."""
     from jeanscv.run.clips import write_jeans_clip
 
     from ..worker import clip_decorate
@@ -148,7 +150,10 @@ def make_clip(
     def on_frame(result) -> None:
         source.done = result.index + 1
         if time.monotonic() > deadline:
-            raise JeansError(f"took longer than the server's limit of {seconds:g} s")
+            # The pool's own wait for this job starts a little later (when the server's
+            # loop hears that it began): on a busy machine this deadline passes first, and
+            # must give the same answer.
+            raise TooSlow(f"{seconds:g} s")
 
     fd, made = tempfile.mkstemp(suffix=f".{source.fmt}", dir=folder)
     os.close(fd)
