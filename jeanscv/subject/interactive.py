@@ -126,7 +126,13 @@ class ClickSession:
         self.rgb = downscale(rgb, self.size)
         scene_rgb = downscale(rgb, shape_for(self.shape, SCENE_SIZE))
         self._shared = shared or SharedHypotheses()
-        found = self._shared.of(scene_rgb).found
+        # The superpixel graph (SLIC, a fifth of the set-up) is made while auto's
+        # hypotheses are cut, whose Python parts leave a core idle (OpenCV releases the
+        # GIL; SLIC has no randomness, so the graph is the same either way).
+        with cut_pool() as pool:
+            graph = pool.submit(ClickGraph, self.rgb)
+            found = self._shared.of(scene_rgb).found
+            self._graph = graph.result()
         self._hypotheses = {
             name: resize_mask(mask, self.size) for name, mask in (found.coarse.items() if found is not None else ())
         }
@@ -134,7 +140,6 @@ class ClickSession:
         self._seed_radius = max(1, round(SEED_FRACTION * min(self.size)))
         #: Fewer working pixels than a click's seed disc are no object (see :meth:`segment`).
         self._smallest = max(4, int(math.pi * self._seed_radius**2))
-        self._graph = ClickGraph(self.rgb)
         self._pixels = PixelRefiner(self.rgb)
 
     # ------------------------------------------------------------------ coordinates
