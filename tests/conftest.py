@@ -15,6 +15,7 @@ import os
 import shutil
 import signal
 import threading
+import time
 from collections import OrderedDict
 from pathlib import Path
 
@@ -48,6 +49,18 @@ _PERSON_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="256" height="256
 <path d="M113 20 L143 20 L143 50 L160 60 L158 130 L150 130 L152 232 L134 232 L128 140 L122 232
 L104 232 L106 130 L98 130 L96 60 L113 50 Z" fill="#000"/></svg>
 """
+
+
+def pytest_sessionfinish(session, exitstatus) -> None:
+    """Let the servers' worker threads and the kernels' warm-up finish what they were
+    left with before the interpreter ends: a daemon thread still inside OpenCV or numba
+    then aborts the process ("terminate called without an active exception", status
+    134) after every test passed, as `jeanscv serve` would without its os._exit (see
+    jeanscv_cli.serve.run). A stopped server's threads end with their job."""
+    deadline = time.monotonic() + 60
+    for thread in threading.enumerate():
+        if thread.daemon and thread.name.startswith(("jeanscv-serve-", "jeanscv-warm-up")):
+            thread.join(timeout=max(0.0, deadline - time.monotonic()))
 
 
 @pytest.fixture(autouse=True, scope="session")
@@ -228,3 +241,12 @@ def make_client():
     yield make
     for client in clients:
         client.__exit__(None, None, None)
+    # The server leaves a running job to finish on its own (a click session made ahead
+    # of the first click, a hover map): wait for it, so it takes no core from the next
+    # test (a clip's time limit there passed early) and is not inside OpenCV when the
+    # suite ends (see pytest_sessionfinish).
+    deadline = time.monotonic() + 60
+    for client in clients:
+        pool = client.app.app.state.jeanscv.pool
+        while pool._running and time.monotonic() < deadline:
+            time.sleep(0.05)
