@@ -168,8 +168,8 @@ def box_interior(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CU
     x0, y0, x1, y1 = box
     crop = rgb[y0:y1, x0:x1]
     ch, cw = crop.shape[:2]
-    sw, sh = shape_for((ch, cw), size)
-    small = np.ascontiguousarray(downscale(crop, (sw, sh)))
+    small, _ = small_copy(crop, size)
+    sh, sw = small.shape[:2]
     start = _geodesic_start(small, np.full((sh, sw), cv2.GC_PR_FGD, np.uint8), (0, 0, sw, sh))
     found = np.zeros(rgb.shape[:2], bool)
     if start is not None:

@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from jeanscv.errors import JeansError
+from jeanscv.geometry import mask_box
 from jeanscv.subject.clicks import Box, ObjectClicks
 
 from .box_cut import box_cut, box_interior, box_recut, box_score
@@ -354,7 +355,7 @@ class ClickSession:
             geodesic_cut = pool.submit(geodesic_grabcut, self.rgb, [point])
             region = self._geodesic_first(point)
             # A speck says nothing of where the object is: no box round it.
-            boxed = self._region_box(region) if region is not None and region.sum() >= least else None
+            boxed = self._region_box(region) if region is not None and np.count_nonzero(region) >= least else None
             candidates["click"] = click_cut.result()
             if region is not None:  # an edge round the click: the geodesic GrabCut has one to find
                 candidates["geodesic"] = region
@@ -399,10 +400,9 @@ class ClickSession:
         its head); the box round it says roughly where the pet is, and its edge marks off
         what surrounds it where auto's hypotheses take the sofa or the owner as well."""
         height, width = region.shape
-        ys, xs = np.nonzero(region)
-        cx, cy = (xs.min() + xs.max() + 1) / 2, (ys.min() + ys.max() + 1) / 2
-        half_w = _REGION_BOX * (xs.max() + 1 - xs.min()) / 2
-        half_h = _REGION_BOX * (ys.max() + 1 - ys.min()) / 2
+        x, y, w, h = mask_box(region)
+        cx, cy = x + w / 2, y + h / 2
+        half_w, half_h = _REGION_BOX * w / 2, _REGION_BOX * h / 2
         box = (
             max(0, int(cx - half_w)),
             max(0, int(cy - half_h)),
