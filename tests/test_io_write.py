@@ -231,6 +231,26 @@ def test_permission_denied_is_translated(tmp_path: Path, monkeypatch: pytest.Mon
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_interrupt_just_after_the_temporary_file_is_made_leaves_none(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A signal can land between the temporary file's creation and the block that removes
+    it on failure (a ``-j 2`` run's SIGTERM once left ``.s01.jeans.png.*.tmp``): the
+    file is removed all the same."""
+    target = tmp_path / "out.txt"
+    target.write_text("previous")
+
+    def interrupted_lock(fd: int, wait: bool) -> bool:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(write_module, "_lock", interrupted_lock)
+    with pytest.raises(KeyboardInterrupt):
+        write_text(target, "half of something")
+
+    assert target.read_text() == "previous"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
+
+
 def test_abandon_writes_removes_what_is_being_written(tmp_path, monkeypatch):
     """A process that exits without waiting for its writer threads (``jeanscv serve``)
     leaves no temporary file, and no write starts or finishes after it."""

@@ -62,8 +62,11 @@ def atomic_file(path: str | Path) -> Iterator[BinaryIO]:
     encoded); the guarantees are those of :func:`atomic_write_bytes`."""
     path = Path(path)
     folder = path.parent
-    tmp, fd = _create_temporary(path)
+    # The temporary file's name, known from just before the file exists: an interrupt
+    # (Ctrl-C, a worker's SIGTERM) at any point after its creation still removes it.
+    made: list[Path] = []
     try:
+        tmp, fd = _create_temporary(path, made)
         with os.fdopen(fd, "w+b") as f:
             yield f
             f.flush()
@@ -78,12 +81,13 @@ def atomic_file(path: str | Path) -> Iterator[BinaryIO]:
                 os.replace(tmp, path)  # still locked: a sweeper never takes a file being renamed
                 _writing.discard(tmp)
     except BaseException as exc:
-        with _writing_lock:
-            _writing.discard(tmp)
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass  # already renamed or never created: nothing left behind
+        for tmp in made:
+            with _writing_lock:
+                _writing.discard(tmp)
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass  # already renamed or never created: nothing left behind
         if isinstance(exc, OSError):
             raise JeansError(f"cannot write output: {_reason(exc)}") from exc
         raise
@@ -120,18 +124,24 @@ def _temporary_name(path: Path) -> Path:
     return path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
 
 
-def _create_temporary(path: Path) -> tuple[Path, int]:
-    """Create and lock a new temporary file beside ``path``: ``(its path, descriptor)``."""
+def _create_temporary(path: Path, made: list[Path] | None = None) -> tuple[Path, int]:
+    """Create and lock a new temporary file beside ``path``: ``(its path, descriptor)``.
+    Its name is put in ``made`` just before it is created and stays there while it is
+    ours, so that whoever catches an interrupt raised in between can remove it."""
+    made = [] if made is None else made
     for _ in range(8):
         tmp = _temporary_name(path)
+        made.append(tmp)
         try:
             # O_EXCL: never clobber someone else's file; mode 0o666 lets the umask decide.
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
         except OSError as exc:
+            made.remove(tmp)  # not made, or someone else's: never ours to remove
             raise JeansError(f"cannot write output: {_reason(exc)}") from exc
         if _lock(fd, wait=True) and not _still_named(tmp, fd):
             # A sweeper took it for a dead writer's between its creation and the lock.
             os.close(fd)
+            made.remove(tmp)
             continue
         with _writing_lock:
             if not _abandoned:
