@@ -77,7 +77,7 @@ pytestmark = pytest.mark.skipif(not PHOTOS, reason="../shared/real_photos is abs
 
 
 @pytest.fixture(scope="module")
-def clicked(real_photo_hypotheses) -> dict[str, tuple[float, float]]:
+def clicked(real_photo_hypotheses) -> dict[str, tuple[float, float, float]]:
     """Per photo: IoU with the reference after one and after three simulated clicks, and
     of a box alone (the reference's tight box)."""
     results = {}
