@@ -58,8 +58,9 @@ class FirstClickMap:
 def first_click_map(session) -> FirstClickMap:
     """The :class:`FirstClickMap` of a :class:`~jeanscv.subject.interactive.ClickSession`
     (about a second; the page asks for it once per photo)."""
+    from .click_masks import grouped_pieces
     from .click_parts import agreed, interior_distance
-    from .interactive import _EDGE_CONTRAST, _grouped_pieces
+    from .interactive import _EDGE_CONTRAST
 
     graph = session._graph
     labels, count, area = graph.labels, graph.count, graph.area
@@ -73,7 +74,7 @@ def first_click_map(session) -> FirstClickMap:
     pieces, piece_nodes, piece_depth = [], [], []
     holders = np.full((len(session._hypotheses), count), -1)
     for row, hypothesis in enumerate(session._hypotheses.values()):
-        components = _grouped_pieces(hypothesis)
+        components = grouped_pieces(hypothesis)
         at_points = components[py, px] * hypothesis[py, px]
         for component in np.unique(at_points[at_points > 0]):
             piece = fill_holes((components == component) & hypothesis)

@@ -40,6 +40,16 @@ from jeanscv.geometry import mask_box
 from jeanscv.subject.clicks import Box, ObjectClicks
 
 from .box_cut import box_cut, box_interior, box_recut, box_score
+from .click_masks import (
+    box_mask,
+    box_pixels,
+    constrained,
+    depth_in,
+    largest_piece_point,
+    new_border_strip,
+    piece_points,
+    relative_depth,
+)
 from .click_parts import (
     SEED_FRACTION,
     ClickGraph,
@@ -50,16 +60,11 @@ from .click_parts import (
     seeded_grabcut,
     small_copy,
 )
-from .consensus import border_shares, iou, spans_width
+from .consensus import iou
 from .grabcut import cut_pool
 from .masks import (
     MIN_AREA_FRACTION,
-    MORPH_FRACTION,
-    deepest_point,
-    disk,
     downscale,
-    fill_holes,
-    largest_component,
     outer_contour,
     resize_mask,
     shape_for,
@@ -89,9 +94,6 @@ _CUT_SIZE = 160
 #: The first click's box candidate (:meth:`ClickSession._region_box`): the box round the
 #: geodesic region grown this many times about its centre.
 _REGION_BOX = 1.5
-#: A hypothesis piece that a positive click offers may not reach more than this share of
-#: the top, left or right side where the mask does not reach it already.
-_PIECE_CONTACT = 0.1
 #: A candidate's vote in that choice: the geodesic region and the GrabCut seeded by it
 #: (nearly the same partition, one in superpixels, one in pixels) are one voter between
 #: them, or together they outvote auto's hypotheses wherever the click's colour region is
@@ -178,7 +180,7 @@ class ClickSession:
         height, width = self.shape
         full = resize_mask(working, (width, height))
         if clicks.box is not None:
-            full &= _box_mask(_box_pixels(clicks.box, (width, height)), full.shape)
+            full &= box_mask(box_pixels(clicks.box, (width, height)), full.shape)
         for x, y in positive:  # the clicked pixels themselves, whatever the upsampling did
             full[int(y), int(x)] = True
         for x, y in negative:
@@ -206,7 +208,7 @@ class ClickSession:
         neg = [q for q in (self._to_working(p) for p in negative) if q not in pos]
         sequence = tuple(("+", p) for p in pos) + tuple(("-", p) for p in neg)
         if clicks.box is not None:
-            mask = self._boxed(_box_pixels(clicks.box, self.shape[::-1]), sequence)
+            mask = self._boxed(box_pixels(clicks.box, self.shape[::-1]), sequence)
         elif not pos:
             mask = self._minus(sequence)
         else:
@@ -232,8 +234,8 @@ class ClickSession:
         if key in self._cache:
             return self._cache[key]
         height, width = self.shape
-        x0, y0, x1, y1 = working = _box_pixels(box, (width, height), self.size)
-        inside = _box_mask(working, self.rgb.shape[:2])
+        x0, y0, x1, y1 = working = box_pixels(box, (width, height), self.size)
+        inside = box_mask(working, self.rgb.shape[:2])
         if not clicks:
             # Cut on the photo's own pixels (a crop of it), then onto the working copy,
             # where the boundary is refined like a click's.
@@ -245,7 +247,7 @@ class ClickSession:
         # of each is kept beside the positive clicks. They are no clicks: a negative
         # click often lands right there (a box round a thin thing holds mostly
         # background), and as a positive one it kept that pixel alone.
-        stand_in = _piece_points(previous, self._smallest)
+        stand_in = piece_points(previous, self._smallest)
         pos = [p for sign, p in clicks if sign == "+"]
         neg = [p for sign, p in clicks if sign == "-"]
         with cut_pool() as pool:
@@ -254,9 +256,9 @@ class ClickSession:
             negative = clicks[-1][0] == "-"
             job = pool.submit(box_recut, self.rgb, working, previous, pos, neg, self._seed_radius) if negative else None
             mask = self._step(previous, clicks, keep=stand_in) & inside if previous.any() else previous
-            keep = (pos + [(x, y) for x, y in stand_in if mask[y, x]]) or _largest_piece_point(mask)
+            keep = (pos + [(x, y) for x, y in stand_in if mask[y, x]]) or largest_piece_point(mask)
             if mask.any() and keep:
-                mask = _constrained(self._pixels.refine(_constrained(mask, keep, neg)), keep, neg) & inside
+                mask = constrained(self._pixels.refine(constrained(mask, keep, neg)), keep, neg) & inside
             recut = job.result() if job is not None else None
         # Local: the box already found the object, so a click changes only what lies
         # within a quarter of the box's diagonal of it (a negative click on the
@@ -304,9 +306,9 @@ class ClickSession:
         else:
             previous = self._minus(clicks[:-1])
             mask = self._step(previous, clicks) if previous.any() else previous
-            keep = _largest_piece_point(mask)
+            keep = largest_piece_point(mask)
             if keep:
-                mask = _constrained(self._pixels.refine(mask), keep, [p for _, p in clicks])
+                mask = constrained(self._pixels.refine(mask), keep, [p for _, p in clicks])
         return self._remember(key, mask)
 
     def _automatic(self) -> np.ndarray:
@@ -331,7 +333,7 @@ class ClickSession:
             mask = self._step(self._after(clicks[:-1]), clicks)
         pos = [p for sign, p in clicks if sign == "+"]
         neg = [p for sign, p in clicks if sign == "-"]
-        refined = _constrained(self._pixels.refine(mask), pos, neg)
+        refined = constrained(self._pixels.refine(mask), pos, neg)
         # The refinement's colour models can erase a small object whole (a dark cat on a
         # dark monitor): then the superpixel mask stands.
         mask = refined if np.count_nonzero(refined) >= min(self._smallest, np.count_nonzero(mask)) else mask
@@ -344,7 +346,7 @@ class ClickSession:
         one the others agree with most and the click lies deepest in; of it, the piece
         under the click (a person clicks each thing that should wear the jeans)."""
         x, y = point
-        candidates = {name: _constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
+        candidates = {name: constrained(m, [point], []) for name, m in self._hypotheses.items() if m[y, x]}
         least = max(3 * self._smallest, MIN_AREA_FRACTION * self._graph.labels.size)
         # The two GrabCuts are most of a first click's time (0.08 s each on this
         # machine): they are cut side by side, the geodesic region and its box made
@@ -359,9 +361,9 @@ class ClickSession:
             candidates["click"] = click_cut.result()
             if region is not None:  # an edge round the click: the geodesic GrabCut has one to find
                 candidates["geodesic"] = region
-                candidates["geocut"] = _constrained(geodesic_cut.result(), [point], [])
+                candidates["geocut"] = constrained(geodesic_cut.result(), [point], [])
                 if boxed is not None:
-                    candidates["region box"] = _constrained(boxed, [point], [])
+                    candidates["region box"] = constrained(boxed, [point], [])
         # A candidate of a few seed discs is a GrabCut collapsed onto its seed: the
         # click's depth in it is the greatest, so it would win the choice and the
         # refinement erase it. On the shared photos, leaving such candidates out raised
@@ -370,12 +372,12 @@ class ClickSession:
         # beside the dog) is no object either: if nothing else is left, nothing was found.
         candidates = {name: m for name, m in candidates.items() if np.count_nonzero(m) >= least}
         if not candidates:  # the clicked pixel alone: segment() says nothing was found
-            return _constrained(np.zeros(self.rgb.shape[:2], bool), [point], [])
+            return constrained(np.zeros(self.rgb.shape[:2], bool), [point], [])
         # Ties go to the geodesic GrabCut: of the candidates, the one that generalises (it
         # is the issue's classical baseline's first step, which held up on photos nobody
         # here tuned for).
         tie = "geocut" if "geocut" in candidates else "click"
-        return _constrained(candidates[_agreed(candidates, point, tie, _VOTES)], [point], [])
+        return constrained(candidates[_agreed(candidates, point, tie, _VOTES)], [point], [])
 
     def _click_grabcut(self, point: tuple[int, int]) -> np.ndarray:
         """GrabCut seeded at the click, on a copy of ``_CUT_SIZE``: probably the object
@@ -390,7 +392,7 @@ class ClickSession:
         labels[:ring], labels[-ring:], labels[:, :ring], labels[:, -ring:] = (cv2.GC_BGD,) * 4
         radius = max(1, round(SEED_FRACTION * short))
         cut = seeded_grabcut(small, labels, [(px, py)], [], radius)
-        return _constrained(resize_mask(cut, self.size), [point], [])
+        return constrained(resize_mask(cut, self.size), [point], [])
 
     def _region_box(self, region: np.ndarray) -> np.ndarray:
         """What lies inside a box round the click's geodesic region, grown
@@ -432,7 +434,7 @@ class ClickSession:
             # No edge along its boundary (a click on plain background: the click and the
             # border reach everything for nothing, and ties split it anyhow): no object.
             return None
-        return _constrained(region[graph.labels], [point], [])
+        return constrained(region[graph.labels], [point], [])
 
     def _step(self, previous: np.ndarray, clicks: tuple, keep: Sequence[tuple[int, int]] = ()) -> np.ndarray:
         """The mask after one more click, from the mask before it.
@@ -455,7 +457,7 @@ class ClickSession:
         wrong = share > 0.5 if sign == "-" else share <= 0.5
         node = int(graph.labels[y, x])
         wrong[node] = True
-        depth = _depth(previous if sign == "-" else ~previous, x, y)
+        depth = depth_in(previous if sign == "-" else ~previous, x, y)
         away = np.hypot(*(graph.centre_px - np.array([x, y])).T)
         anchors = np.zeros(graph.count, bool)
         anchors[[graph.labels[py, px] for s, (px, py) in clicks if s != sign]] = True
@@ -481,7 +483,7 @@ class ClickSession:
             mask = self._with_pieces(previous, mask, (x, y), neg)
         # Negative clicks alone (the automatic subject minus them): its largest piece stays.
         held = pos + [(kx, ky) for kx, ky in keep if mask[ky, kx]]
-        return _constrained(mask, held or _largest_piece_point(mask), neg)
+        return constrained(mask, held or largest_piece_point(mask), neg)
 
     def _with_pieces(self, previous: np.ndarray, grown: np.ndarray, point, neg: list) -> np.ndarray:
         """A positive click outside the mask: of the geodesic growth and the pieces of
@@ -492,90 +494,14 @@ class ClickSession:
         for name, hypothesis in self._hypotheses.items():
             if not hypothesis[y, x]:
                 continue
-            piece = _constrained(hypothesis, [point], [])
+            piece = constrained(hypothesis, [point], [])
             if any(piece[ny, nx] for nx, ny in neg):
                 continue
             addition = piece & ~previous
-            if _new_border_strip(addition, previous):
+            if new_border_strip(addition, previous):
                 continue
             added[name] = addition
         return previous | added[_agreed(added, point, "geodesic")]
-
-
-def _box_pixels(box: Box, size: tuple[int, int], target: tuple[int, int] | None = None) -> tuple[int, int, int, int]:
-    """A box ``(x0, y0, x1, y1)`` in pixels of an image of ``size`` = (w, h) as whole
-    pixels of an image of ``target`` (default ``size``): the pixels it covers, end
-    exclusive, at least one."""
-    width, height = size
-    tw, th = target or size
-    sx, sy = tw / width, th / height
-    x0 = min(max(int(math.floor(box[0] * sx)), 0), tw - 1)
-    y0 = min(max(int(math.floor(box[1] * sy)), 0), th - 1)
-    x1 = max(min(int(math.ceil(box[2] * sx)), tw), x0 + 1)
-    y1 = max(min(int(math.ceil(box[3] * sy)), th), y0 + 1)
-    return x0, y0, x1, y1
-
-
-def _piece_points(mask: np.ndarray, least: int) -> list[tuple[int, int]]:
-    """A pixel ``(x, y)`` deepest inside each piece of ``mask`` of at least ``least``
-    pixels (8-connected), the largest piece's first; [] when empty."""
-    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
-    if count <= 1:
-        return []
-    areas = np.bincount(labels.ravel(), minlength=count)
-    areas[0] = 0
-    order = [int(k) for k in np.argsort(-areas, kind="stable") if areas[k] >= least or k == np.argmax(areas)]
-    return [deepest_point(labels == k) for k in order if areas[k] > 0]
-
-
-def _largest_piece_point(mask: np.ndarray) -> list[tuple[int, int]]:
-    """A pixel ``(x, y)`` deepest inside the largest piece of ``mask`` ([] when empty)."""
-    # masks.deepest_point's 3x3 distance mask, not interior_distance's 5x5: the box
-    # figures in docs/clicks.md were measured with it (the 5x5 mask's distances differ a
-    # little, and so do the points it picks).
-    return [deepest_point(largest_component(mask))] if mask.any() else []
-
-
-def _box_mask(box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndarray:
-    """``(H, W)`` bool, True on the box's pixels ``(x0, y0, x1, y1)``, end exclusive."""
-    x0, y0, x1, y1 = box
-    inside = np.zeros(shape, bool)
-    inside[y0:y1, x0:x1] = True
-    return inside
-
-
-def _grouped_pieces(mask: np.ndarray) -> np.ndarray:
-    """``(H, W) int32`` labels of ``mask``'s pieces (0 outside them), pieces that a
-    closing of 1% of the object's size joins counting as one (the grouping of
-    :func:`_constrained`; a label may hold pixels of the closing outside ``mask``)."""
-    eight = mask.astype(np.uint8)
-    radius = int(MORPH_FRACTION * np.sqrt(max(int(eight.sum()), 1)))
-    grouped = cv2.morphologyEx(eight, cv2.MORPH_CLOSE, disk(radius)) if radius > 0 else eight
-    grouped |= eight
-    _, components = cv2.connectedComponents(grouped, connectivity=8)
-    return components
-
-
-def _constrained(mask: np.ndarray, pos: list, neg: list) -> np.ndarray:
-    """``mask`` made to obey the clicks: the pieces that hold a positive click (pieces
-    that a closing of 1% of the object's size joins count as one, as in
-    :func:`~jeanscv.subject.objects.split_objects`: a leg cut off by a thin gap stays),
-    holes filled unless a negative click is in one; every positive click in, every
-    negative click out."""
-    components = _grouped_pieces(mask)
-    keep = {int(components[y, x]) for x, y in pos} - {0}
-    kept = (np.isin(components, list(keep)) & mask) if keep else np.zeros_like(mask, dtype=bool)
-    filled = fill_holes(kept)
-    holes = filled & ~kept
-    if holes.any() and neg:
-        _, hole_labels = cv2.connectedComponents(holes.astype(np.uint8), connectivity=4)
-        drop = {int(hole_labels[y, x]) for x, y in neg} - {0}
-        filled &= ~np.isin(hole_labels, list(drop))
-    for x, y in pos:
-        filled[y, x] = True
-    for x, y in neg:
-        filled[y, x] = False
-    return filled
 
 
 def _agreed(
@@ -587,31 +513,10 @@ def _agreed(
     return agreed(
         list(candidates),
         lambda a, b: iou(candidates[a], candidates[b]),
-        lambda a: _relative_depth(candidates[a], x, y),
+        lambda a: relative_depth(candidates[a], x, y),
         votes,
         tie,
     )
-
-
-def _new_border_strip(addition: np.ndarray, previous: np.ndarray) -> bool:
-    """True when ``addition`` runs along the top, left or right side (more than
-    ``_PIECE_CONTACT`` of it) where ``previous`` does not reach, or spans the width: what
-    runs along the border is mostly background (Zhu et al. 2014); where the object already
-    reaches a side, more of it there is the object leaving the frame."""
-    before = border_shares(previous)[:3]
-    after = border_shares(addition)[:3]
-    return spans_width(addition) or any(a > _PIECE_CONTACT and b == 0 for a, b in zip(after, before))
-
-
-def _depth(region: np.ndarray, x: int, y: int) -> float:
-    """Distance (pixels, at least 2) from (x, y) to the boundary of ``region``."""
-    return max(2.0, float(interior_distance(region)[y, x]))
-
-
-def _relative_depth(mask: np.ndarray, x: int, y: int) -> float:
-    """The click's distance to the mask's boundary over the mask's deepest distance."""
-    distance = interior_distance(mask)
-    return float(distance[y, x]) / max(float(distance.max()), 1.0)
 
 
 def simulated_click(reference: np.ndarray, predicted: np.ndarray | None) -> tuple[bool, Point]:
