@@ -455,6 +455,42 @@ def test_the_geodesic_start_is_the_distance_from_both_sides_of_the_boxs_edge():
         assert np.array_equal(_geodesic_start(small, labels, box), expected)
 
 
+def test_what_a_click_changes_far_from_itself_goes_back_where_it_has_the_other_sides_colours():
+    """After a box, a click's step is checked by colour: of what it moved farther from
+    the click than the click's depth, what looks like the side it left goes back. Here a
+    negative click on a grey strip wrongly taken with two white squares took the strip
+    and the far square too (a leak through steps too small to cost): the square, white
+    like the object kept, comes back exactly; a grey one, like the strip, stays out."""
+    image = np.full((160, 240, 3), 120, np.uint8)
+    kept, far, strip = (np.zeros((160, 240), bool) for _ in range(3))
+    kept[50:110, 20:80] = True
+    far[50:110, 170:230] = True
+    strip[60:100, 100:130] = True
+    clicks = (("+", (50, 80)), ("-", (115, 80)))
+    for colour, comes_back in (((235, 235, 235), True), ((120, 120, 120), False)):
+        image[kept] = (235, 235, 235)
+        image[far] = colour
+        image[strip] = (120, 120, 120)
+        session = ClickSession(image)
+        previous = kept | far | strip
+        keep = [(50, 80), (200, 80)]  # a deepest point of each piece, as after a box
+        checked = session._colour_checked(previous, kept.copy(), clicks, keep)
+        assert np.array_equal(checked, (kept | far) if comes_back else kept)
+
+
+def test_colour_density_is_a_weighted_mixture_of_gaussian_kernels():
+    from jeanscv.subject.click_parts import colour_density
+
+    samples = np.array([[50.0, 0.0, 0.0], [50.0, 8.0, 0.0]])
+    weights = np.array([3.0, 1.0])
+    colours = np.array([[50.0, 0.0, 0.0], [50.0, 0.0, 8.0]])
+    # The first colour sits on the first sample and 8 (one kernel width) from the second;
+    # the second lies 8 from the first and 8 * sqrt(2) from the second.
+    expected = [(3 + np.exp(-0.5)) / 4, (3 * np.exp(-0.5) + np.exp(-1.0)) / 4]
+    np.testing.assert_allclose(colour_density(colours, samples, weights, 8.0), expected, rtol=1e-12)
+    assert np.array_equal(colour_density(colours, samples[:0], weights[:0]), [0.0, 0.0])
+
+
 def test_a_box_whose_starts_collapse_is_cut_again_from_its_centre(monkeypatch):
     """Where both starts give nothing (two cats in a box of the margin's colours), the
     box is cut again with its centre held as the object: a red square on green ground

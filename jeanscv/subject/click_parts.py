@@ -29,6 +29,9 @@ _ITERATIONS = 3
 REGION_FRACTION = 0.02
 #: Lab steps between neighbouring superpixels below this cost nothing (noise, texture).
 _STEP_FLOOR = 4.0
+#: Width (Lab units) of the Gaussian kernel a superpixel's mean colour is weighed with
+#: against others' (:func:`colour_density`).
+COLOUR_KERNEL = 8.0
 #: The pixel refinement: colour histograms of ``_COLOUR_BITS`` bits a channel, learned
 #: within ``_MODEL_REACH`` superpixel widths of the boundary; the mask's weight as a
 #: prior; the guided filter's radius (a share of a superpixel's width) and its
@@ -124,6 +127,7 @@ class ClickGraph:
         region = max(4, round(REGION_FRACTION * max(rgb.shape[:2])))
         graph = SuperpixelGraph.of(lab, region)
         self.labels, self.count, self.area = graph.labels, graph.count, graph.area
+        self.colour = graph.colour  # (n, 3) mean Lab of each superpixel
         self.centre_px = graph.centre * float(max(rgb.shape[:2]))
         self.on_border = graph.border.any(axis=1)
         i, j = graph.edges[:, 0], graph.edges[:, 1]
@@ -198,6 +202,18 @@ def agreed(
         for a in names
     }
     return max(names, key=lambda name: (scores[name], name == tie))
+
+
+def colour_density(
+    colours: np.ndarray, samples: np.ndarray, weights: np.ndarray, sigma: float = COLOUR_KERNEL
+) -> np.ndarray:
+    """``(n,)`` density of each of ``colours`` (``(n, 3)`` Lab) under Gaussian kernels of
+    width ``sigma`` at ``samples`` (``(m, 3)``) weighted by ``weights`` (``(m,)``, their
+    areas), over the weights' sum; zeros when there are no samples."""
+    if len(samples) == 0:
+        return np.zeros(len(colours))
+    squared = ((colours[:, None, :] - samples[None, :, :]) ** 2).sum(-1)
+    return (np.exp(-squared / (2 * sigma**2)) * weights[None]).sum(1) / max(float(weights.sum()), 1e-9)
 
 
 def interior_distance(region: np.ndarray) -> np.ndarray:
