@@ -512,7 +512,7 @@ class ClickSession:
         changed = before != after
         depth = depth_in(previous if sign == "-" else ~previous, x, y)
         away = np.hypot(*(graph.centre_px - np.array([x, y])).T)
-        far = changed & (away > depth + 1e-9)
+        far = changed & (away > depth)
         if not far.any():
             return mask
         mine = changed & ~far
