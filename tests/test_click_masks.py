@@ -98,3 +98,20 @@ def test_a_piece_along_a_side_the_mask_does_not_reach_is_a_border_strip():
     inside = np.zeros((20, 20), bool)
     inside[6:8, 8:12] = True
     assert not rules.new_border_strip(inside, previous)
+
+
+def test_held_pieces_keeps_the_clicked_pieces_and_the_kept_points_else_the_largest():
+    mask = np.zeros((9, 12), bool)
+    mask[1:4, 1:4] = True  # a small piece
+    mask[2:7, 6:11] = True  # a larger one
+    small, large = mask.copy(), mask.copy()
+    small[:, 5:] = False
+    large[:, :5] = False
+    np.testing.assert_array_equal(rules.held_pieces(mask, (("+", (2, 2)),)), small)
+    # A point to keep holds its piece too, unless it has left the mask.
+    np.testing.assert_array_equal(rules.held_pieces(mask, (("+", (2, 2)),), [(8, 4)]), mask)
+    np.testing.assert_array_equal(rules.held_pieces(mask, (("+", (2, 2)),), [(0, 8)]), small)
+    # Negative clicks alone: the largest piece, the clicked pixel out.
+    expected = large.copy()
+    expected[3, 7] = False
+    np.testing.assert_array_equal(rules.held_pieces(mask, (("-", (7, 3)),)), expected)

@@ -15,6 +15,7 @@ from PIL import Image
 
 from jeanscv.api import apply_jeans, extract_silhouettes
 from jeanscv.errors import JeansError
+from jeanscv.subject.click_masks import depth_in
 from jeanscv.subject.clicks import Clicks, ObjectClicks, loads_clicks, read_clicks, sidecar_path, write_clicks
 from jeanscv.subject.interactive import ClickSession
 
@@ -474,7 +475,9 @@ def test_what_a_click_changes_far_from_itself_goes_back_where_it_has_the_other_s
         session = ClickSession(image)
         previous = kept | far | strip
         keep = [(50, 80), (200, 80)]  # a deepest point of each piece, as after a box
-        checked = session._colour_checked(previous, kept.copy(), clicks, keep)
+        depth = depth_in(previous, 115, 80)  # the negative click's, in what it corrects
+        away = np.hypot(*(session._graph.centre_px - np.array([115, 80])).T)
+        checked = session._colour_checked(previous, kept.copy(), clicks, keep, depth, away)
         assert np.array_equal(checked, (kept | far) if comes_back else kept)
 
 

@@ -8,6 +8,7 @@ Points are ``(x, y)`` working pixels; boxes ``(x0, y0, x1, y1)``, end exclusive.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -118,3 +119,14 @@ def relative_depth(mask: np.ndarray, x: int, y: int) -> float:
     """The click's distance to the mask's boundary over the mask's deepest distance."""
     distance = interior_distance(mask)
     return float(distance[y, x]) / max(float(distance.max()), 1.0)
+
+
+def held_pieces(mask: np.ndarray, clicks: tuple, keep: Sequence[tuple[int, int]] = ()) -> np.ndarray:
+    """``mask`` made to obey ``clicks`` (``(sign, point)`` pairs, ``"+"`` or ``"-"``) as
+    :func:`constrained` does, the pieces kept being those with a positive click or a
+    pixel of ``keep`` still in ``mask``; with neither (negative clicks alone: the
+    automatic subject minus them), the largest."""
+    pos = [p for sign, p in clicks if sign == "+"]
+    neg = [p for sign, p in clicks if sign == "-"]
+    held = pos + [(x, y) for x, y in keep if mask[y, x]]
+    return constrained(mask, held or largest_piece_point(mask), neg)

@@ -45,6 +45,7 @@ from .click_masks import (
     box_pixels,
     constrained,
     depth_in,
+    held_pieces,
     largest_piece_point,
     new_border_strip,
     piece_points,
@@ -257,11 +258,7 @@ class ClickSession:
             # is made: the same masks, 0.05 s sooner on a 12-MP photo.
             negative = clicks[-1][0] == "-"
             job = pool.submit(box_recut, self.rgb, working, previous, pos, neg, self._seed_radius) if negative else None
-            if previous.any():
-                mask = self._colour_checked(previous, self._step(previous, clicks, keep=stand_in), clicks, stand_in)
-                mask &= inside
-            else:
-                mask = previous
+            mask = self._step(previous, clicks, stand_in, colour_check=True) & inside if previous.any() else previous
             keep = (pos + [(x, y) for x, y in stand_in if mask[y, x]]) or largest_piece_point(mask)
             if mask.any() and keep:
                 mask = constrained(self._pixels.refine(constrained(mask, keep, neg)), keep, neg) & inside
@@ -442,7 +439,13 @@ class ClickSession:
             return None
         return constrained(region[graph.labels], [point], [])
 
-    def _step(self, previous: np.ndarray, clicks: tuple, keep: Sequence[tuple[int, int]] = ()) -> np.ndarray:
+    def _step(
+        self,
+        previous: np.ndarray,
+        clicks: tuple,
+        keep: Sequence[tuple[int, int]] = (),
+        colour_check: bool = False,
+    ) -> np.ndarray:
         """The mask after one more click, from the mask before it.
 
         The click says that the region around it is on the wrong side. On the
@@ -455,7 +458,8 @@ class ClickSession:
         (a whole sky) but not what lies beyond one. A positive click off the mask may
         add a piece of auto's hypotheses instead (:meth:`_with_pieces`). The pieces kept:
         those with a positive click or a pixel of ``keep`` (when still in), else the
-        largest.
+        largest. With ``colour_check``, what the step moved far from the click goes back
+        where its colour says so (:meth:`_colour_checked`).
         """
         sign, (x, y) = clicks[-1]
         graph = self._graph
@@ -483,38 +487,41 @@ class ClickSession:
         flip = wrong & (near_click < near_other)
         mask = previous.copy()
         mask[flip[graph.labels]] = sign == "+"
-        pos = [p for s, p in clicks if s == "+"]
-        neg = [p for s, p in clicks if s == "-"]
         if sign == "+" and not previous[y, x]:
-            mask = self._with_pieces(previous, mask, (x, y), neg)
-        # Negative clicks alone (the automatic subject minus them): its largest piece stays.
-        held = pos + [(kx, ky) for kx, ky in keep if mask[ky, kx]]
-        return constrained(mask, held or largest_piece_point(mask), neg)
+            mask = self._with_pieces(previous, mask, (x, y), [p for s, p in clicks if s == "-"])
+        mask = held_pieces(mask, clicks, keep)
+        return self._colour_checked(previous, mask, clicks, keep, depth, away) if colour_check else mask
 
     def _colour_checked(
-        self, previous: np.ndarray, mask: np.ndarray, clicks: tuple, keep: Sequence[tuple[int, int]]
+        self,
+        previous: np.ndarray,
+        stepped: np.ndarray,
+        clicks: tuple,
+        keep: Sequence[tuple[int, int]],
+        depth: float,
+        away: np.ndarray,
     ) -> np.ndarray:
-        """``mask``, the last click's step from ``previous``, with the superpixels it moved
-        farther from the click than the click's depth moved back where their colour is
-        likelier on the side they left than on the side the click says: the superpixels
-        the step moved near the click, and those under the clicks of its sign (Gaussian
-        kernels over the superpixels' mean Lab colours, weighted by area). A click changes
-        what its own surroundings look like, and what looks like the rest of the object
-        (a negative click on the mat that reaches the puppy through steps too small to
-        cost) or of the background (a positive click on a cat's grey flank that reaches
-        the pavement) stays as it was. Used after a box, where on the shared photos it
-        lowered the harmful clicks from 15 to 11 of 300 with every mean the same or
-        higher; without a box it traded photos (docs/clicks.md)."""
-        sign, (x, y) = clicks[-1]
+        """``stepped``, the last click's step from ``previous``, with the superpixels it
+        moved farther from the click than its ``depth`` (``away``: each superpixel's
+        distance from the click) moved back where their colour is likelier on the side
+        they left than on the side the click says: the superpixels the step moved near
+        the click, and those under the clicks of its sign (Gaussian kernels over the
+        superpixels' mean Lab colours, weighted by area); the pieces kept as
+        :meth:`_step` keeps them. A click changes what its own surroundings look like,
+        and what looks like the rest of the object (a negative click on the mat that
+        reaches the puppy through steps too small to cost) or of the background (a
+        positive click on a cat's grey flank that reaches the pavement) stays as it was.
+        Used after a box, where on the shared photos it lowered the harmful clicks from 15
+        to 11 of 300 with every mean the same or higher; without a box it traded photos
+        (docs/clicks.md)."""
+        sign = clicks[-1][0]
         graph = self._graph
         before = graph.mean_of(previous) > 0.5
-        after = graph.mean_of(mask) > 0.5
+        after = graph.mean_of(stepped) > 0.5
         changed = before != after
-        depth = depth_in(previous if sign == "-" else ~previous, x, y)
-        away = np.hypot(*(graph.centre_px - np.array([x, y])).T)
         far = changed & (away > depth)
         if not far.any():
-            return mask
+            return stepped
         mine = changed & ~far
         mine[[graph.labels[py, px] for s, (px, py) in clicks if s == sign]] = True
         other = after if sign == "-" else ~after
@@ -525,14 +532,8 @@ class ClickSession:
         back = np.zeros(graph.count, bool)
         back[nodes[there > here]] = True
         if not back.any():
-            return mask
-        pixels = back[graph.labels]
-        checked = mask.copy()
-        checked[pixels] = previous[pixels]
-        pos = [p for s, p in clicks if s == "+"]
-        neg = [p for s, p in clicks if s == "-"]
-        held = pos + [(kx, ky) for kx, ky in keep if checked[ky, kx]]
-        return constrained(checked, held or largest_piece_point(checked), neg)
+            return stepped
+        return held_pieces(np.where(back[graph.labels], previous, stepped), clicks, keep)
 
     def _with_pieces(self, previous: np.ndarray, grown: np.ndarray, point, neg: list) -> np.ndarray:
         """A positive click outside the mask: of the geodesic growth and the pieces of
