@@ -14,11 +14,11 @@ lies farthest from its boundary), at that point: positive where the subject was 
 negative where background was taken; a photo that reaches IoU 0.90 stops there and keeps
 that value for the later clicks (issue 31's counting). Prints per photo and on average
 the IoU after 1, 2, 3 and 5 clicks, NoC@85 and NoC@90 (clicks needed, at most 10; 11
-counts a photo that never gets there), the time to set the image, the first click's time (it chooses among
-auto's hypotheses and cuts a GrabCut) and the median time of the later clicks; the
-means row gives medians of the times. With several sets, a line per set also counts the
-empty answers and the harmful clicks (ones that lowered the IoU by more than 0.05), and
-``--sheet S.jpg`` writes ``S-SET.jpg`` for each.
+counts a photo that never gets there), the time to set the image, the first click's
+time (it chooses among auto's hypotheses and cuts a GrabCut) and the median time of the
+later clicks; the means row gives medians of the times. With several sets, a line per
+set also counts the empty answers and the harmful clicks (ones that lowered the IoU by
+more than 0.05), and ``--sheet S.jpg`` writes ``S-SET.jpg`` for each.
 """
 
 from __future__ import annotations
@@ -77,8 +77,9 @@ def reference_box(reference: np.ndarray) -> tuple[int, int, int, int]:
 
 def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS, box: bool = False) -> dict:
     """Simulate ``clicks`` clicks (after the reference's box, with ``box``), or fewer
-    where the IoU reaches :data:`DONE`: IoU after each, the set-up and per-click seconds, the clicks made and the mask after (at most)
-    three of them; with ``box`` also the box alone's IoU (``box_iou``)."""
+    where the IoU reaches :data:`DONE`: IoU after each, the set-up and per-click seconds,
+    the clicks made and the mask after (at most) three of them; with ``box`` also the box
+    alone's IoU (``box_iou``)."""
     start = time.perf_counter()
     session = ClickSession(pixels)
     setup = time.perf_counter() - start
