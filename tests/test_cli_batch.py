@@ -323,9 +323,14 @@ def test_the_fork_server_loads_the_library_and_the_cached_kernels_once(compiled_
         "print(all(loaded), 'jeanscv_cli.worker' in sys.modules, 'jeanscv.pipeline' in sys.modules,"
         " gc.get_freeze_count() > 0)\n"
     )
+    assert _python(code) == ["True"] * 4
+
+
+def _python(code: str) -> list[str]:
+    """The words ``code`` prints, run in a fresh interpreter (which must exit cleanly)."""
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=300)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["True"] * 4
+    return done.stdout.split()
 
 
 def test_a_batch_starts_its_workers_fork_server_before_listing_the_files(tmp_path, monkeypatch):
@@ -360,3 +365,27 @@ def test_the_command_collects_young_garbage_less_often_and_restores_the_threshol
     assert run_cli("x.png").exit_code == 0
     assert seen == [(10_000, *before[1:])]
     assert gc.get_threshold() == before
+
+
+def test_a_worker_forked_by_the_fork_server_can_set_its_threads():
+    """The fork server starts no OpenCV worker threads: a forked worker lowering its
+    thread count to one (as ``init_worker`` does with two workers on two cores) returns at
+    once. With OpenCV 5.1 and the Lab tables built on its pool, every worker hung there."""
+    code = (
+        "import os, time, cv2\n"
+        "import jeanscv.run._forkserver\n"
+        "pid = os.fork()\n"
+        "if pid == 0:\n"
+        "    cv2.setNumThreads(1)\n"
+        "    cv2.setNumThreads(3)\n"
+        "    os._exit(0)\n"
+        "for _ in range(6000):  # a minute\n"
+        "    if os.waitpid(pid, os.WNOHANG)[0]:\n"
+        "        print('returned')\n"
+        "        break\n"
+        "    time.sleep(0.01)\n"
+        "else:\n"
+        "    os.kill(pid, 9)\n"
+        "    print('hung')\n"
+    )
+    assert _python(code) == ["returned"]

@@ -32,6 +32,8 @@ def _preload() -> None:
 
 def _load() -> None:
     """Import what every worker imports for its first file, and load the kernels."""
+    import cv2
+
     import jeanscv_cli.worker  # noqa: F401
 
     from .. import pipeline  # noqa: F401
@@ -39,6 +41,12 @@ def _load() -> None:
     from ..io import image, write  # noqa: F401
     from ..subject.scene import prepare_lab_tables
 
+    # The server must hold no OpenCV worker threads when it forks: a child does not
+    # inherit them, and with OpenCV 5.1 a child that then lowers its thread count (every
+    # worker does, ``init_worker``) waits for them for ever. Building the Lab tables
+    # starts OpenCV's pool, so the server keeps to one thread; each worker sets its own
+    # share of the cores.
+    cv2.setNumThreads(1)
     prepare_lab_tables(wait=True)  # built once here, not in every worker (no thread is left running)
     if _fast.kernels_cached():
         _fast.load_kernels()
