@@ -4,6 +4,7 @@
     python -m bench.clicks FOLDER [FOLDER ...]   # any folders of NAME.jpg + NAME.mask.png
     python -m bench.clicks --megapixels 12       # photos upscaled to 12 MP (click latency)
     python -m bench.clicks --sheet docs/clicks.jpg
+    python -m bench.clicks --sheet S.jpg --sheet-after 1 --clicks 1   # the sheet after one click
     python -m bench.clicks --box                 # a box first (the reference mask's), then clicks
     python -m bench.clicks --width 4000          # every photo resized to 4000 px wide first
 
@@ -75,18 +76,20 @@ def reference_box(reference: np.ndarray) -> tuple[int, int, int, int]:
     return int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
 
 
-def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS, box: bool = False) -> dict:
+def run_photo(
+    pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS, box: bool = False, shown: int = 3
+) -> dict:
     """Simulate ``clicks`` clicks (after the reference's box, with ``box``), or fewer
     where the IoU reaches :data:`DONE`: IoU after each, the set-up and per-click seconds,
-    the clicks made and the mask after (at most) three of them; with ``box`` also the box
-    alone's IoU (``box_iou``)."""
+    the clicks made and the mask after (at most) ``shown`` of them (``"shown"``; 0 with
+    ``box``: the box's own); with ``box`` also the box alone's IoU (``box_iou``)."""
     start = time.perf_counter()
     session = ClickSession(pixels)
     setup = time.perf_counter() - start
     positive: list = []
     negative: list = []
     ious, seconds, made = [], [], []
-    predicted = None
+    predicted = after = None
     drawn = reference_box(reference) if box else None
     result: dict = {}
     if drawn is not None:
@@ -94,7 +97,7 @@ def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICK
         predicted = _segment(session, [], [], drawn)
         result["box_seconds"] = time.perf_counter() - start
         result["box_iou"] = iou(predicted, reference)
-        after_three = predicted
+        after = predicted
     for _ in range(clicks):
         sign, point = simulated_click(reference, predicted)
         (positive if sign else negative).append(point)
@@ -103,11 +106,11 @@ def run_photo(pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICK
         predicted = _segment(session, positive, negative, drawn)
         seconds.append(time.perf_counter() - start)
         ious.append(iou(predicted, reference))
-        if len(made) <= 3:
-            after_three = predicted
+        if len(made) <= shown:
+            after = predicted
         if ious[-1] >= DONE:
             break
-    return result | {"ious": ious, "seconds": seconds, "setup": setup, "clicks": made, "after_three": after_three}
+    return result | {"ious": ious, "seconds": seconds, "setup": setup, "clicks": made, "shown": after}
 
 
 def _segment(session: ClickSession, positive: list, negative: list, box) -> np.ndarray:
@@ -142,9 +145,9 @@ def resize_to_width(pixels: np.ndarray, reference: np.ndarray, width: int) -> tu
     return upscale(pixels, reference, width**2 * reference.shape[0] / reference.shape[1] / 1e6)
 
 
-def contact_sheet(rows: list[tuple[str, np.ndarray, np.ndarray, list, float]], path: Path, clicks: int = 3) -> None:
-    """A grid of photos after ``clicks`` clicks: the mask tinted, its outline, the clicks
-    (green positive, red negative) and the IoU."""
+def contact_sheet(rows: list[tuple[str, np.ndarray, np.ndarray, list, float]], path: Path) -> None:
+    """A grid of photos, each with a mask, the clicks made for it and its IoU: the mask
+    tinted, its outline, the clicks (green positive, red negative) and the IoU."""
     tiles = []
     for name, pixels, mask, made, score in rows:
         rgb = np.ascontiguousarray(pixels[..., :3])
@@ -176,11 +179,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="*", type=Path)
     parser.add_argument("--megapixels", type=float, help="upscale every photo to this size first")
-    parser.add_argument("--sheet", type=Path, help="write a contact sheet (after 3 clicks) here")
+    parser.add_argument("--sheet", type=Path, help="write a contact sheet (after --sheet-after clicks) here")
+    parser.add_argument(
+        "--sheet-after", type=int, default=3, help="clicks shown on the sheet (default 3; 0 with --box: the box alone)"
+    )
     parser.add_argument("--clicks", type=int, default=MAX_CLICKS)
     parser.add_argument("--box", action="store_true", help="a box (the reference mask's) first, then the clicks")
     parser.add_argument("--width", type=int, help="resize every photo to this width first")
     args = parser.parse_args()
+    if args.sheet_after < (0 if args.box else 1):
+        parser.error("--sheet-after must be at least 1 (0 only with --box: the box alone)")
     sets = photo_sets(args.folders)
     sheets = {folder: _sheet_path(args.sheet, folder, len(sets) > 1) for folder, _ in sets}
     means = [(folder, run_set(pairs, args, sheets[folder])) for folder, pairs in sets]
@@ -224,7 +232,7 @@ def run_set(pairs: list, args, sheet_path: Path | None = None) -> str:
             pixels, reference = upscale(pixels, reference, args.megapixels)
         if args.width:
             pixels, reference = resize_to_width(pixels, reference, args.width)
-        result = run_photo(pixels, reference, args.clicks, box=args.box)
+        result = run_photo(pixels, reference, args.clicks, box=args.box, shown=args.sheet_after)
         result["ious"] = ious = result["ious"] + [result["ious"][-1]] * (MAX_CLICKS - len(result["ious"]))
         result["noc85"], result["noc90"] = noc(ious, 0.85), noc(ious, 0.90)
         results.append(result)
@@ -235,7 +243,9 @@ def run_set(pairs: list, args, sheet_path: Path | None = None) -> str:
             flush=True,
         )
         if sheet_path:
-            sheet.append((name, pixels, result["after_three"], result["clicks"][:3], ious[2]))
+            shown = min(args.sheet_after, len(result["clicks"]))
+            score = ious[shown - 1] if shown else result["box_iou"]
+            sheet.append((name, pixels, result["shown"], result["clicks"][:shown], score))
 
     def mean(key, index=None):
         values = [r[key][index] if index is not None else r[key] for r in results]
