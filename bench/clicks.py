@@ -243,9 +243,9 @@ def run_set(pairs: list, args, sheet_path: Path | None = None) -> str:
             flush=True,
         )
         if sheet_path:
-            shown = min(args.sheet_after, len(result["clicks"]))
-            score = ious[shown - 1] if shown else result["box_iou"]
-            sheet.append((name, pixels, result["shown"], result["clicks"][:shown], score))
+            count = min(args.sheet_after, len(result["clicks"]))  # a photo done at 0.90 stopped sooner
+            score = ious[count - 1] if count else result["box_iou"]
+            sheet.append((name, pixels, result["shown"], result["clicks"][:count], score))
 
     def mean(key, index=None):
         values = [r[key][index] if index is not None else r[key] for r in results]
