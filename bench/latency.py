@@ -5,7 +5,7 @@ varied 12-MP photos with ``-j 2`` (and where a photo's time goes), and the defau
     python -m bench.latency [--photos N] [--skip-cold]
 
 - *first run*: ``jeanscv sample_images/cat.jpg`` with an empty kernel cache
-  (``NUMBA_CACHE_DIR``), as after ``pip install`` (which leaves the modules' bytecode
+  (``JEANSCV_CACHE_DIR``), as after ``pip install`` (which leaves the modules' bytecode
   compiled); then the same command again (cached), and whether both wrote the same bytes.
 - *fresh process*: ``jeanscv PHOTO`` on a 12-MP copy of a shared photo, kernels cached,
   median of three runs after one to warm the disk cache.
@@ -59,7 +59,7 @@ def _command(args: list[str], env: dict | None = None) -> float:
 def first_run(tmp: Path) -> tuple[float, float, bool]:
     """Wall seconds of the README's first command with empty caches, then cached, and
     whether the two outputs are the same bytes."""
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "kernels")}
+    env = {**os.environ, "JEANSCV_CACHE_DIR": str(tmp / "cache")}
     photo = str(ROOT / "sample_images" / "cat.jpg")
     cold = _command([photo, "-o", str(tmp / "cold"), "-q"], env)
     warm = _command([photo, "-o", str(tmp / "warm"), "-q"], env)

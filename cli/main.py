@@ -103,6 +103,23 @@ def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> No
     ctx.exit(0)
 
 
+def _clear_cache(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from jeanscv.fitting._fast.cache import clear_kernel_cache
+
+    try:
+        folder, files, size = clear_kernel_cache()
+    except OSError as exc:
+        click.echo(f"jeanscv: cannot remove the compiled kernels: {exc.strerror or exc}", err=True)
+        ctx.exit(1)
+    if files:
+        click.echo(f"removed the compiled fit kernels: {files} files, {size / 1e6:.1f} MB, from {folder}")
+    else:
+        click.echo(f"no compiled fit kernels to remove ({folder})")
+    ctx.exit(0)
+
+
 def _check_silhouette(ctx: click.Context, param: click.Parameter, value: str) -> str:
     from jeanscv.plugins import available_silhouette_methods
 
@@ -311,6 +328,14 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     callback=_list_garments,
     help="List the garments and exit.",
 )
+@click.option(
+    "--clear-cache",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_clear_cache,
+    help="Remove the compiled fit kernels (every version's) from the per-user cache and exit.",
+)
 @click.version_option(__version__, "--version", prog_name="jeanscv", message="%(prog)s %(version)s")
 @click.pass_context
 def cli(ctx: click.Context, paths: tuple[str, ...], **kw) -> None:
@@ -404,7 +429,7 @@ def _main(
         progress.info(
             "compiling the fit kernels for this installation, once (about 25 s on two free cores); later runs load them"
         )
-        progress.info(f"(numba keeps them in {kernel_cache_dir()})")
+        progress.info(f"(kept in {kernel_cache_dir()}; 'jeanscv --clear-cache' removes them)")
     records = _unprocessed(found, progress)
     outcomes: dict = {}
     pending = _pending(found.jobs, options, overwrite, progress, outcomes)

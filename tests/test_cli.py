@@ -298,6 +298,31 @@ def test_list_presets_and_garments(run_cli):
     assert garments.exit_code == 0 and garments.stdout.startswith("jeans: ")
 
 
+def test_clear_cache_removes_every_versions_kernels_and_nothing_else(tmp_path):
+    """``--clear-cache`` empties jeanscv's kernel folder (every version's) in the per-user
+    cache, imports neither numba nor torch, and says what it removed."""
+    kernels = tmp_path / "cache" / "kernels"
+    for key in ("0.0.9-0123456789abcdef", "0.1.0-fedcba9876543210"):
+        (kernels / key).mkdir(parents=True)
+        (kernels / key / "objective.descend-593.py311.nbi").write_bytes(b"x" * 1000)
+    (tmp_path / "cache" / "other").write_text("kept")
+    env = {**_env(), "JEANSCV_CACHE_DIR": str(tmp_path / "cache")}
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "jeanscv", "--clear-cache"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout == f"removed the compiled fit kernels: 2 files, 0.0 MB, from {kernels}\n"
+    assert not kernels.exists() and (tmp_path / "cache" / "other").read_text() == "kept"
+    imported = {line.split("|")[-1].strip().split(".")[0] for line in done.stderr.splitlines()}
+    assert not imported & {"torch", "numba", "cv2"}
+    again = subprocess.run([sys.executable, "-m", "jeanscv", "--clear-cache"], capture_output=True, text=True, env=env)
+    assert again.returncode == 0 and again.stdout == f"no compiled fit kernels to remove ({kernels})\n"
+
+
 def test_version_and_help_do_not_import_heavy_modules():
     for flag in ("--version", "--help"):
         done = subprocess.run(

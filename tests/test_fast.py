@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -310,21 +311,35 @@ def test_a_cpu_photo_run_never_imports_torch(tmp_path):
 
 def test_kernels_cached_looks_for_the_step_loop_index(tmp_path, monkeypatch):
     """A fresh install has no index of the step loop (its first fit compiles for about
-    half a minute, which the command line announces); with NUMBA_CACHE_DIR, numba's
-    folder for these kernels under it is looked into."""
+    half a minute, which the command line announces); it is looked for in jeanscv's
+    kernel folder for this version and source, under JEANSCV_CACHE_DIR where that is set."""
     from jeanscv.fitting._fast import kernels_cached
-    from jeanscv.fitting._fast.cache import _subpath
+    from jeanscv.fitting._fast.cache import source_key
 
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("JEANSCV_CACHE_DIR", str(tmp_path / "cache"))
     assert kernels_cached(tmp_path) is False
-    (tmp_path / "__pycache__" / "objective.descend-593.py311.nbi").write_bytes(b"")
+    folder = tmp_path / "cache" / "kernels" / source_key(tmp_path)
+    (folder / "objective.descend-593.py311.nbi").write_bytes(b"")
     assert kernels_cached(tmp_path) is True
-    elsewhere = tmp_path / "cache"
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(elsewhere))
-    assert kernels_cached(tmp_path) is False
-    (elsewhere / _subpath(tmp_path)).mkdir(parents=True)
-    (elsewhere / _subpath(tmp_path) / "objective.descend-593.py311.nbi").write_bytes(b"")
-    assert kernels_cached(tmp_path) is True
+    (tmp_path / "objective.py").write_text("# another version of the kernels")
+    source_key.cache_clear()
+    assert kernels_cached(tmp_path) is False  # its own folder: stale machine code is never shared
+
+
+def test_every_kernel_caches_outside_the_installed_package():
+    """numba's default would write the machine code into ``__pycache__`` beside the source,
+    inside site-packages for an installed jeanscv (files pip never removes)."""
+    from numba.core.dispatcher import Dispatcher
+
+    from jeanscv.fitting._fast import objective, raster
+    from jeanscv.fitting._fast.cache import kernel_cache_dir
+
+    kernels = [k for module in (objective, raster) for k in vars(module).values() if isinstance(k, Dispatcher)]
+    assert len(kernels) >= 30
+    package = Path(_fast.__file__).resolve().parents[2]
+    for kernel in kernels:
+        assert Path(kernel._cache.cache_path) == kernel_cache_dir(), kernel.__name__
+        assert package not in Path(kernel._cache.cache_path).resolve().parents
 
 
 def test_the_second_compiling_process_compiles_what_a_fit_calls():
@@ -348,7 +363,7 @@ def test_the_second_compiling_process_compiles_what_a_fit_calls():
 def test_one_second_compiling_process_per_cache_folder(tmp_path, monkeypatch):
     from jeanscv.fitting._fast import ahead
 
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("JEANSCV_CACHE_DIR", str(tmp_path))
     launched = []
     monkeypatch.setattr(ahead.subprocess, "Popen", lambda command, **_: launched.append(command))
     assert ahead.start() and not ahead.start()

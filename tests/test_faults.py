@@ -408,39 +408,39 @@ def test_big_folder_counts(tmp_path, run_cli):
 
 
 def test_kernel_cache_of_a_read_only_install(tmp_path, monkeypatch):
-    """Where numba keeps the kernels: beside them when writable, else the per-user
-    cache, else (a service account without a home) a private temporary folder that
-    NUMBA_CACHE_DIR is set to. 'Cannot be written' is made real for root too: a regular
-    file where the folder should be."""
-    from jeanscv.fitting._fast.cache import _subpath, kernel_cache_dir
+    """Where the kernels are kept: the per-user cache (never beside the installed source),
+    else (a service account without a home) a private temporary folder that
+    JEANSCV_CACHE_DIR is set to, for the processes a run starts. 'Cannot be written' is made
+    real for root too: a regular file where the folder should be."""
+    from jeanscv.fitting._fast.cache import kernel_cache_dir, source_key
 
     kernels = tmp_path / "site-packages" / "jeanscv" / "fitting" / "_fast"
     kernels.mkdir(parents=True)
-    # kernel_cache_dir sets NUMBA_CACHE_DIR (and numba's config) itself, below: both put back
-    # after the test, or every later fit of the suite, and every subprocess it starts, compiled
-    # the kernels afresh into this test's empty folder (a minute of CI). setenv, unlike delenv
-    # of an unset variable, is undone; kernel_cache_dir takes "" as unset.
+    key = source_key(kernels)
+    # kernel_cache_dir sets JEANSCV_CACHE_DIR itself, below: put back after the test, or every
+    # later fit of the suite, and every subprocess it starts, compiled the kernels afresh into
+    # this test's empty folder (a minute of CI). setenv, unlike delenv of an unset variable,
+    # is undone; "" counts as unset.
+    monkeypatch.setenv("JEANSCV_CACHE_DIR", "")
     monkeypatch.setenv("NUMBA_CACHE_DIR", "")
-    if "numba" in sys.modules:
-        monkeypatch.setattr(sys.modules["numba"].config, "CACHE_DIR", sys.modules["numba"].config.CACHE_DIR)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home-cache"))
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
     (tmp_path / "tmp").mkdir()
-    assert kernel_cache_dir(kernels) == kernels / "__pycache__"
+    user = tmp_path / "home-cache" / "jeanscv" / "kernels" / key
+    assert kernel_cache_dir(kernels) == user and user.is_dir()
+    assert not (kernels / "__pycache__").exists()
 
-    (kernels / "__pycache__").rmdir()
-    (kernels / "__pycache__").write_bytes(b"")  # the installation cannot be written
-    user = tmp_path / "home-cache" / "numba" / _subpath(kernels)
-    assert kernel_cache_dir(kernels) == user
-    assert user.is_dir()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))  # where a user sent numba's caches
+    assert kernel_cache_dir(kernels) == tmp_path / "numba" / "jeanscv" / "kernels" / key
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
 
-    (tmp_path / "nohome").write_bytes(b"")  # neither can the home folder
+    (tmp_path / "nohome").write_bytes(b"")  # the home folder cannot be written
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "nohome"))
-    private = tmp_path / "tmp" / f"jeanscv-numba-{os.getuid()}"
-    assert kernel_cache_dir(kernels) == private / _subpath(kernels)
-    assert os.environ["NUMBA_CACHE_DIR"] == str(private)
+    private = tmp_path / "tmp" / f"jeanscv-cache-{os.getuid()}"
+    assert kernel_cache_dir(kernels) == private / "kernels" / key
+    assert os.environ["JEANSCV_CACHE_DIR"] == str(private)
     assert stat.S_IMODE(private.stat().st_mode) == 0o700
-    assert kernel_cache_dir(kernels) == private / _subpath(kernels)  # the same on the next call
+    assert kernel_cache_dir(kernels) == private / "kernels" / key  # the same on the next call
 
 
 def test_private_cache_folder_is_not_taken_from_someone_else(tmp_path, monkeypatch):
@@ -448,7 +448,7 @@ def test_private_cache_folder_is_not_taken_from_someone_else(tmp_path, monkeypat
     from jeanscv.fitting._fast.cache import _private_temporary_root
 
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
-    planted = tmp_path / f"jeanscv-numba-{os.getuid()}"
+    planted = tmp_path / f"jeanscv-cache-{os.getuid()}"
     planted.mkdir(mode=0o777)
     planted.chmod(0o777)
     root = _private_temporary_root()

@@ -3,8 +3,9 @@
 The torch code (:mod:`jeanscv.fitting.loss`, :mod:`jeanscv.fitting.render`) is the reference; these
 kernels compute the same quantities in float64 with hand-written gradients (see
 ``raster.py`` and ``objective.py``) and agree with it to rounding (tests/test_fast.py).
-Kernels are compiled on first use and cached on disk (numba ``cache=True``), so a
-fresh process loads them instead of compiling.
+Kernels are compiled on first use and cached on disk in the per-user cache
+(:mod:`.cache`, never inside the installed package), so a fresh process loads them
+instead of compiling.
 
 Which path a fit takes: :func:`jeanscv.device.resolve_backend` (``JEANSCV_BACKEND=torch|fast``,
 else fast on CPU when numba imports).
@@ -23,18 +24,13 @@ from ...device import fast_available
 from ..terms import STROKE_HALF_WIDTH, TERM_NAMES, affine_residual_operator
 from .cache import kernel_cache_dir
 
-# Before numba is imported (by objective.py and raster.py): where nothing numba would use
-# can be written, point it at a private temporary folder, or it refuses cache=True kernels.
-kernel_cache_dir()
-
 #: Segments per round cap of a stroke polygon (render.CAP_SEGMENTS).
 CAP_SEGMENTS = 8
 
 
 def kernels_cached(folder: Path = Path(__file__).parent) -> bool:
-    """Whether numba's cache of the kernels in ``folder`` holds the fit's step loop,
-    wherever numba keeps it (:func:`kernel_cache_dir`: beside the kernels, or
-    ``NUMBA_CACHE_DIR``, or the per-user cache of a read-only install).
+    """Whether the cache of the kernels in ``folder`` (:func:`kernel_cache_dir`) holds
+    the fit's step loop.
 
     False on a fresh install, whose first fit compiles the kernels (about half a minute,
     once). Reads file names only, so it costs no import of numba. An index left by an

@@ -17,7 +17,7 @@ lone stroke's cell has are made over that list. Everything costs O(band cells +
 overlaps), not O(canvas).
 
 One topic in about 830 lines: the kernels below call one another inside numba and are
-compiled and cached together (``cache=True`` keys on this file), so they stay in one
+compiled and cached together (numba's cache keys on this file), so they stay in one
 module; the rasterizer they share lives in ``raster.py``.
 """
 
@@ -27,9 +27,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..terms import UPRIGHT_FREE_DEGREES, UPRIGHT_SATURATE_DEGREES
+from .jit import njit
 from .raster import (
     BAND_COLUMNS,
     OUTLINE_POINTS,
@@ -112,7 +112,7 @@ def band_scratch_rows(size: int, half_width: float) -> int:
 (CENTER, COVERAGE, RIGID, OPEN, CLOSED, INTER, INSIDE, UPRIGHT) = range(8)
 
 
-@njit(cache=True)
+@njit
 def _upright(v, waist, hems, free, saturated, weight, grad, need_grad):
     """``upright`` (loss.upright_term) of one candidate; adds ``weight * d/dv`` to ``grad``."""
     wa, wb, ha, hb = waist[0], waist[1], hems[0], hems[1]
@@ -152,7 +152,7 @@ def _upright(v, waist, hems, free, saturated, weight, grad, need_grad):
     return value
 
 
-@njit(cache=True)
+@njit
 def _whole(w: float) -> bool:
     """Whether a winding value is 0, 1 or beyond to rounding: cells between the pieces
     of a row that hold such a value have coverage 0 or 1 and (analytically) no
@@ -161,7 +161,7 @@ def _whole(w: float) -> bool:
     return a <= 1e-12 or a >= 1.0 - 1e-12
 
 
-@njit(cache=True)
+@njit
 def _sorted_cells(touched, listed, counts, r, cols):
     """Row ``r``'s touched cells and cell 0, in order, into ``listed[r]``; returns how many."""
     m = counts[r]
@@ -187,7 +187,7 @@ def _sorted_cells(touched, listed, counts, r, cols):
     return m
 
 
-@njit(cache=True)
+@njit
 def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, scratch, col0, crossings):
     """``(coverage, inside)`` of one candidate; adds their weighted gradient to ``grad``.
 
@@ -231,7 +231,7 @@ def _fill_terms(v, s, s_rows, s_total, w_cov, w_inside, grad, need_grad, scratch
     return coverage, inside
 
 
-@njit(cache=True)
+@njit
 def _fill_sums(v, s, s_rows, oy, ox, rows, cols, scratch, col0, crossings):
     """The polygon's pieces scattered on its ``rows x cols`` window at ``(ox, oy)`` and
     summed along each row: ``(area, not_on_body, uncovered_in, s_window)``, the sums of
@@ -284,7 +284,7 @@ def _fill_sums(v, s, s_rows, oy, ox, rows, cols, scratch, col0, crossings):
     return area, not_on_body, uncovered_in, s_window
 
 
-@njit(cache=True)
+@njit
 def _fill_gradient(v, s, oy, ox, rows, cols, d_uncovered, d_area, d_not_on_body, grad, scratch, col0, crossings):
     """Adds the fill terms' gradient to ``grad``: dL/dW per listed cell and its prefix
     sums along the row, gathered back along the pieces of each edge; clears the lists."""
@@ -336,14 +336,14 @@ def _fill_gradient(v, s, oy, ox, rows, cols, d_uncovered, d_area, d_not_on_body,
         grad[j, 1] += g4[3]
 
 
-@njit(cache=True)
+@njit
 def _pixel(row_start, row_col_start, x_major, r, c):
     """Canvas ``(x, y)`` of band cell ``(r, c)``; ``row_col_start``: the row's first column."""
     major, minor = row_start + r, row_col_start + c
     return (major, minor) if x_major else (minor, major)
 
 
-@njit(cache=True)
+@njit
 def _band_alpha(band_wind, bands, k, x, y):
     """Stroke ``k``'s alpha at canvas pixel ``(x, y)``, read from its band."""
     major, minor = (x, y) if bands.x_major[k] else (y, x)
@@ -356,7 +356,7 @@ def _band_alpha(band_wind, bands, k, x, y):
     return min(abs(band_wind[k, r, c]), 1.0)
 
 
-@njit(cache=True)
+@njit
 def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     """All eight terms of each candidate and the gradient of the weighted total.
 
@@ -453,7 +453,7 @@ def objective(vertices, target, need_grad, totals, terms, grad, scratch):
     weighted_totals(terms, weights, totals)
 
 
-@njit(cache=True)
+@njit
 def _rows_limit(vertices, half_width, low, high, finite):
     """Rows enough for every stroke band of the candidates with finite vertices; marks
     the others false in ``finite``."""
@@ -481,7 +481,7 @@ def _rows_limit(vertices, half_width, low, high, finite):
     return rows_limit
 
 
-@njit(cache=True)
+@njit
 def _shape_terms(v, target, need_grad, terms, g_v):
     """``center``, ``rigid`` and ``upright`` of one candidate into ``terms`` ``(8,)``;
     adds their weighted gradient to ``g_v``."""
@@ -514,7 +514,7 @@ def _shape_terms(v, target, need_grad, terms, g_v):
     terms[UPRIGHT] = _upright(v, waist, target.hems, free, saturated, weights[UPRIGHT], g_v, need_grad)
 
 
-@njit(cache=True)
+@njit
 def _stroke_bands(v, target, scratch, low, high, rows_limit, bands, outline, areas, on_body, crossings):
     """Every edge's stroke on its band (alphas in ``scratch.band_wind``, each stroke's
     area and on-body sum), and each stroke's bit in the pixel mask; a pixel that a second
@@ -564,7 +564,7 @@ def _stroke_bands(v, target, scratch, low, high, rows_limit, bands, outline, are
             band_lo[e, r], band_hi[e, r] = lo, hi  # later passes visit only the stroke's cells
 
 
-@njit(cache=True)
+@njit
 def _overlap_sums(target, scratch, bands, labels, union, overlap, pair_excess):
     """The overlaps' pixels, strokes and alphas listed in ``scratch``; the unions' excess
     into ``union[:, 2:]`` and each counted pair's overlap and excess. Returns how many."""
@@ -625,7 +625,7 @@ def _overlap_sums(target, scratch, bands, labels, union, overlap, pair_excess):
     return overlaps
 
 
-@njit(cache=True)
+@njit
 def _stroke_gradient(
     v, target, scratch, low, high, overlaps, union, union_den, areas, overlap, pair_excess, labels, bands,
     outline, g_outline, band_prefix, crossings, g_v,
@@ -693,7 +693,7 @@ def _stroke_gradient(
         g_v[f, 1] += gqy
 
 
-@njit(cache=True)
+@njit
 def _overlap_values(
     target, scratch, overlaps, bands, labels, base, union_weight, union_d_den, union_den, pair_den, pair_d_den
 ):
@@ -735,7 +735,7 @@ def _overlap_values(
             band_diff[e, r, c] = g if w > 0 else -g
 
 
-@njit(cache=True)
+@njit
 def weighted_totals(terms, weights, totals):
     """``totals[b]``: the sum of the terms of non-zero weight times their weights, added
     in term order as loss.weighted_total adds them."""
@@ -747,7 +747,7 @@ def weighted_totals(terms, weights, totals):
         totals[b] = total
 
 
-@njit(cache=True)
+@njit
 def _clear_mask(mask, size, bands):
     """Zero the pixel mask where the candidate's strokes set it."""
     row_start, col_start, band_count, band_lo, band_hi, x_major = bands
@@ -766,7 +766,7 @@ def _clear_mask(mask, size, bands):
 # changes, and the step loop's compiled code holds the objective's.
 
 
-@njit(cache=True)
+@njit
 def adam_step(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_size, bias2, eps):
     """:func:`jeanscv.fitting.adam.adam_update` element by element, for ``(B, N, 2)`` arrays: the
     same operations in the same order, so the same bits (tests/test_fast.py), without
@@ -785,7 +785,7 @@ def adam_step(params, grad, exp_avg, exp_avg_sq, beta1, beta2, step_size, bias2,
                 params[b, i, j] -= step_size * (m / (math.sqrt(v / bias2) + eps))
 
 
-@njit(cache=True)
+@njit
 def descend(params, exp_avg, exp_avg_sq, step_sizes, bias2, beta1, beta2, eps, target, totals, path, scratch):
     """The fit's Adam steps on one target in one call: a step crosses into Python once per
     stretch of steps on the same target instead of a dozen times (about 0.1 ms a step, a

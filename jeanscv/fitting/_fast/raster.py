@@ -19,7 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .jit import njit
 
 #: Cells across a stroke band, and how many lie left of the centre line (as render.py).
 BAND_COLUMNS = 13
@@ -29,7 +30,7 @@ OUTLINE_POINTS = 18
 _NO_AXIS = 2  # a piece end that is an edge endpoint (t = 0 or 1), not a grid crossing
 
 
-@njit(cache=True)
+@njit
 def _safe(span: float) -> float:
     """The reference's stand-in divisor for spans so tiny that 1/span would overflow."""
     if abs(span) >= 1e-12:
@@ -37,7 +38,7 @@ def _safe(span: float) -> float:
     return -1e-12 if span < 0 else 1e-12
 
 
-@njit(cache=True)
+@njit
 def cut_edge(ax, ay, bx, by, lox, hix, loy, hiy, ts, axes, lines) -> int:
     """Grid crossings of the edge ``a -> b``, sorted by ``t``, endpoints included.
 
@@ -81,7 +82,7 @@ def cut_edge(ax, ay, bx, by, lox, hix, loy, hiy, ts, axes, lines) -> int:
     return count + 1
 
 
-@njit(cache=True)
+@njit
 def _t_grad(t_axis, line, ax, ay, dx, dy, g_t, g):
     """Add ``g_t * dt/d(a, d)`` of one piece end to ``g = [g_ax, g_ay, g_dx, g_dy]``."""
     if t_axis == _NO_AXIS or g_t == 0.0:
@@ -107,7 +108,7 @@ def _t_grad(t_axis, line, ax, ay, dx, dy, g_t, g):
 # Pieces left of a row's cells are dropped and pieces right of them cover the row.
 
 
-@njit(cache=True)
+@njit
 def _piece(ax, ay, dx, dy, ta, tb, row0, col0, nrows, width):
     """Where the piece ``t in [ta, tb]`` of the edge ``a + t d`` lands on a row grid.
 
@@ -125,7 +126,7 @@ def _piece(ax, ay, dx, dy, ta, tb, row0, col0, nrows, width):
     return True, r, min(c, width), xm, tm, (tb - ta) * dy
 
 
-@njit(cache=True)
+@njit
 def _list_cell(touched, listed, counts, r, c):
     """Add cell ``(r, c)`` to row ``r``'s list of touched cells, once."""
     if not touched[r, c]:
@@ -134,7 +135,7 @@ def _list_cell(touched, listed, counts, r, c):
         counts[r] += 1
 
 
-@njit(cache=True)
+@njit
 def scatter_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, diff, ts, axes, lines, cells):
     """Accumulate one edge's pieces into a difference buffer ``diff`` ``(rows, width + 2)``.
 
@@ -160,7 +161,7 @@ def scatter_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, d
                 _list_cell(cells[0], cells[1], cells[2], r, c + 1)
 
 
-@njit(cache=True)
+@njit
 def gather_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, cell_grad, prefix, ts, axes, lines, g):
     """Backward of :func:`scatter_edge`: adds dL/d(a, d) of the edge to ``g``.
 
@@ -188,7 +189,7 @@ def gather_edge(ax, ay, bx, by, lox, hix, loy, hiy, row0, col0, nrows, width, ce
         _t_grad(axes[k + 1], lines[k + 1], ax, ay, dx, dy, 0.5 * g_tm + g_w * dy, g)
 
 
-@njit(cache=True)
+@njit
 def row_prefix(cell_grad, nrows, width, prefix):
     """Exclusive prefix sums of ``cell_grad`` along each row."""
     for r in range(nrows):
@@ -199,7 +200,7 @@ def row_prefix(cell_grad, nrows, width, prefix):
         prefix[r, width] = acc
 
 
-@njit(cache=True)
+@njit
 def polygon_winding(vertices, height, width, row0, nrows, diff, ts, axes, lines):
     """Fill ``diff`` ``(nrows, width + 2)`` with the pieces of a closed polygon on rows
     ``row0 .. row0 + nrows`` of a ``height x width`` grid (columns from 0)."""
@@ -228,7 +229,7 @@ def polygon_winding(vertices, height, width, row0, nrows, diff, ts, axes, lines)
         )
 
 
-@njit(cache=True)
+@njit
 def polygon_coverage_rows(vertices, height, width, row0, nrows, out):
     """Exact non-zero coverage ``min(|W|, 1)`` of a polygon on rows ``row0 ..`` of a
     ``height x width`` grid, written to ``out`` ``(nrows, width)`` (any float dtype)."""
@@ -246,7 +247,7 @@ def polygon_coverage_rows(vertices, height, width, row0, nrows, out):
 # ----------------------------------------------------------------------------- strokes
 
 
-@njit(cache=True)
+@njit
 def clip_segment(px, py, qx, qy, low, high):
     """Liang-Barsky clip of ``p -> q`` to ``[low, high]^2`` (render._clip_to_box).
 
@@ -285,7 +286,7 @@ def clip_segment(px, py, qx, qy, low, high):
     return t_in, t_out, ax_in, ax_out, side_in, side_out, False
 
 
-@njit(cache=True)
+@njit
 def clipped_segment(px, py, qx, qy, low, high):
     """The segment as its band sees it: clipped (:func:`clip_segment`), then with x and
     y swapped when it runs more along x. Returns ``(sx, sy, ex, ey, x_major, clip)``."""
@@ -300,7 +301,7 @@ def clipped_segment(px, py, qx, qy, low, high):
     return sx, sy, ex, ey, x_major, clip
 
 
-@njit(cache=True)
+@njit
 def band_extent(sy, ey, half_width):
     """The band of a (flipped) segment along y (render._plan_bands): ``(row_start, own_rows)``."""
     y_low, y_high = min(sy, ey), max(sy, ey)
@@ -308,7 +309,7 @@ def band_extent(sy, ey, half_width):
     return int(row_start), int(math.floor(y_high + half_width) - row_start) + 1
 
 
-@njit(cache=True)
+@njit
 def band_plan(sx, sy, ex, ey, row_start, rows, col_start):
     """Band placement along y of a (flipped) segment (render._plan_bands): fills
     ``col_start[:rows]`` with the first column of each band row from ``row_start``
@@ -321,7 +322,7 @@ def band_plan(sx, sy, ex, ey, row_start, rows, col_start):
         col_start[r] = int(math.floor(sx + (centre_y - sy) * slope)) - BAND_LEFT
 
 
-@njit(cache=True)
+@njit
 def band_rows(px, py, qx, qy, half_width, low, high) -> int:
     """Rows the reference's band of segment ``p -> q`` spans (its ``_plan_bands``)."""
     sx, sy, ex, ey, _, _ = clipped_segment(px, py, qx, qy, low, high)
@@ -329,7 +330,7 @@ def band_rows(px, py, qx, qy, half_width, low, high) -> int:
     return int(math.floor(y_high + half_width) - math.floor(y_low - half_width)) + 1
 
 
-@njit(cache=True)
+@njit
 def capsule_outline(sx, sy, ex, ey, cos_r, sin_r, out):
     """The stroke polygon of ``s -> e`` (render.stroke_outlines): ``out`` ``(18, 2)``.
 
@@ -352,7 +353,7 @@ def capsule_outline(sx, sy, ex, ey, cos_r, sin_r, out):
     return ux, uy, length, tiny
 
 
-@njit(cache=True)
+@njit
 def capsule_backward(ux, uy, length, tiny, cos_r, sin_r, g_out):
     """dL/d(s, e) from dL/d(outline points) ``g_out`` ``(18, 2)``: ``(gsx, gsy, gex, gey)``."""
     caps = cos_r.shape[0]
@@ -379,7 +380,7 @@ def capsule_backward(ux, uy, length, tiny, cos_r, sin_r, g_out):
     return gsx, gsy, gex, gey
 
 
-@njit(cache=True)
+@njit
 def clip_backward(px, py, qx, qy, t_in, t_out, ax_in, ax_out, side_in, side_out, gsx, gsy, gex, gey):
     """dL/d(p, q) from dL/d(clipped s, e): ``(gpx, gpy, gqx, gqy)``."""
     dx, dy = qx - px, qy - py
@@ -405,7 +406,7 @@ def clip_backward(px, py, qx, qy, t_in, t_out, ax_in, ax_out, side_in, side_out,
     return gpx, gpy, gqx, gqy
 
 
-@njit(cache=True)
+@njit
 def stroke_band(
     px, py, qx, qy, half_width, low, high, rows_limit, cos_r, sin_r, outline, col_start, diff, ts, axes, lines
 ):
@@ -454,7 +455,7 @@ def stroke_band(
     return row_start, rows, x_major, False
 
 
-@njit(cache=True)
+@njit
 def stroke_band_backward(
     px,
     py,
@@ -520,7 +521,7 @@ def stroke_band_backward(
     return clip_backward(px, py, qx, qy, t_in, t_out, ax_in, ax_out, side_in, side_out, gsx, gsy, gex, gey)
 
 
-@njit(cache=True)
+@njit
 def stroke_maps(start, end, height, width, half_width, cos_r, sin_r, out):
     """Full ``(M, height, width)`` coverage maps of the strokes ``start[m] -> end[m]``
     (render.stroke_coverage): ``out`` must be zero."""
