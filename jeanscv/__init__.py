@@ -10,6 +10,7 @@ stays cheap and does not load torch until a function needs it.
 
 The package's folders are the stages of the data flow, each importing only those below
 it (``tests/test_imports.py`` checks the order): :mod:`jeanscv.io` (decode, encode),
+:mod:`jeanscv.detect` (photo -> the objects a shipped detector sees),
 :mod:`jeanscv.subject` (photo -> subject mask -> Silhouette), :mod:`jeanscv.fitting`
 (Silhouette's canvas -> fitted polygon), :mod:`jeanscv.paint` (fit -> picture), then
 :mod:`jeanscv.pipeline` and :mod:`jeanscv.api`, which tie them, and :mod:`jeanscv.run`

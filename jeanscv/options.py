@@ -28,9 +28,15 @@ if TYPE_CHECKING:
 KINDS = ("auto", "silhouette", "photo")
 #: ``one``: the main subject; ``all``: every separate object, each with its own garment.
 OBJECTS = ("one", "all")
+#: The COCO classes that are animals: the detector's names for what ``animal`` takes.
+ANIMAL_CLASSES = ("bird", "cat", "dog", "horse", "sheep", "cow", "elephant", "bear", "zebra", "giraffe")
 #: What a photo's subject is: ``auto`` prefers an animal beside a person, ``animal`` and
-#: ``person`` say which, ``object`` takes the most salient thing whatever it is.
-SUBJECTS = ("auto", "animal", "person", "object")
+#: ``person`` say which, ``object`` takes the most salient thing whatever it is; an animal
+#: class (``dog``) prefers that animal among those detected.
+SUBJECTS = ("auto", "animal", "person", "object", *ANIMAL_CLASSES)
+#: How automatic finding knows what is in a photo: ``auto``, the detector jeanscv ships
+#: (:mod:`jeanscv.detect`); ``none``, classical cues alone.
+DETECTORS = ("auto", "none")
 #: How the garment is painted on a photo: a denim texture, or the paper's flat blue.
 STYLES = ("denim", "flat")
 #: ``upright``: the garment hangs down unless no upright fit passes the rule checks;
@@ -58,7 +64,9 @@ class JeansOptions:
     Silhouette: ``kind``, ``silhouette_method`` (a built-in or a plugin's name),
     ``threshold`` and ``rect`` (for the ``threshold`` and ``grabcut`` methods), ``mask``
     (an ``(H, W)`` array or an image file: the object, instead of segmenting), ``objects``,
-    ``subject`` (what automatic finding looks for: ``auto``, ``animal``, ``person``, ``object``);
+    ``subject`` (what automatic finding looks for: ``auto``, ``animal``, ``person``, ``object``,
+    or an animal class such as ``dog``), ``detector`` (``auto``: the shipped detector finds
+    the subject's box; ``none``: classical finding alone);
     clicks that fix the subject (pixels of the photo as displayed; see
     :func:`jeanscv.subject.extraction.extract_silhouettes`): ``points`` and ``background_points``
     (one object's positive and negative clicks), ``box`` (``(x0, y0, x1, y1)``: that
@@ -89,6 +97,7 @@ class JeansOptions:
     mask: np.ndarray | str | os.PathLike | None = None
     objects: str = _choice("one", OBJECTS, "objects")
     subject: str = _choice("auto", SUBJECTS, "subject")
+    detector: str = _choice("auto", DETECTORS, "detector")
     points: tuple[tuple[float, float], ...] = ()
     background_points: tuple[tuple[float, float], ...] = ()
     box: tuple[float, float, float, float] | None = None
@@ -134,4 +143,14 @@ class JeansOptions:
         return tuple(option.name for option in dataclasses.fields(cls))
 
 
-__all__ = ["JeansOptions", "KINDS", "OBJECTS", "POSTURES", "SILHOUETTE_METHODS", "STYLES", "SUBJECTS"]
+__all__ = [
+    "ANIMAL_CLASSES",
+    "DETECTORS",
+    "JeansOptions",
+    "KINDS",
+    "OBJECTS",
+    "POSTURES",
+    "SILHOUETTE_METHODS",
+    "STYLES",
+    "SUBJECTS",
+]

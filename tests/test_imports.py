@@ -171,6 +171,7 @@ def test_no_import_cycles():
 STAGES: list[tuple[str, list[str]]] = [
     ("base", ["jeanscv.errors", "jeanscv.geometry", "jeanscv.device", "jeanscv.options"]),
     ("io", ["jeanscv.io"]),
+    ("detect", ["jeanscv.detect"]),
     ("subject", ["jeanscv.subject"]),
     ("fitting", ["jeanscv.fitting"]),
     ("paint", ["jeanscv.paint"]),
