@@ -17,7 +17,7 @@ import click
 
 from jeanscv import __version__
 from jeanscv.device import BACKENDS, DEVICES
-from jeanscv.options import KINDS, OBJECTS, POSTURES, STYLES, SUBJECTS, JeansOptions
+from jeanscv.options import DETECTORS, KINDS, OBJECTS, POSTURES, STYLES, SUBJECTS, JeansOptions
 
 #: The library's defaults, which the command's options show and use (``--device`` is ``auto`` here).
 DEFAULTS = JeansOptions()
@@ -227,7 +227,15 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     default=DEFAULTS.subject,
     show_default=True,
     help="What automatic finding looks for in a photo: auto (an animal rather than the person "
-    "beside it), animal, person, or object (the most salient thing).",
+    "beside it), animal, person, object (the most salient thing), or an animal class (dog, cat, ...).",
+)
+@click.option(
+    "--detector",
+    type=click.Choice(DETECTORS),
+    default=DEFAULTS.detector,
+    show_default=True,
+    help="How automatic finding knows what is in a photo: auto (the small object detector shipped "
+    "with jeanscv finds the animal's box) or none (classical cues alone).",
 )
 @click.option(
     "--point",

@@ -11,6 +11,7 @@ import functools
 import os
 import signal
 import time
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +21,21 @@ from jeanscv.run.runner import encode_picture, failure_reason, report_text
 
 from .discover import Job
 from .runs import claim, stop_with_parent
+
+
+def _one_line_warnings() -> None:
+    """jeanscv's own warnings (a skipped plugin, a detector that cannot be used) print as
+    the one line they are, ``jeanscv: ...``, without Python's file and source line."""
+    plain = warnings.formatwarning
+
+    def formatted(message, category, filename, lineno, line=None) -> str:
+        text = str(message)
+        return f"{text}\n" if text.startswith("jeanscv: ") else plain(message, category, filename, lineno, line)
+
+    warnings.formatwarning = formatted
+
+
+_one_line_warnings()
 
 
 @dataclass

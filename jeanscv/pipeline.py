@@ -142,6 +142,7 @@ def prepare_input(
         mask=mask,
         shared=shared,
         subject=options.subject,
+        detector=options.detector,
     )
     return silhouettes, "photo", pixels, loaded
 

@@ -116,10 +116,11 @@ def test_check_point_rejects_points_off_the_image(point):
 
 
 def test_extract_silhouettes_one_and_all():
+    """Classical finding's objects (the detector is left out: these are drawn shapes)."""
     photo = scene()
-    one = extract_silhouettes(photo.image, objects="one")
+    one = extract_silhouettes(photo.image, objects="one", detector="none")
     assert len(one) == 1  # the main subject: both animals, as the segmentation found them
-    every = extract_silhouettes(photo.image, objects="all")
+    every = extract_silhouettes(photo.image, objects="all", detector="none")
     assert len(every) == 2
     for silhouette, truth in zip(sorted(every, key=lambda s: s.details["box"][0]), photo.masks):
         assert iou(np.asarray(silhouette.mask, bool), truth) > 0.85
@@ -130,7 +131,7 @@ def test_extract_silhouettes_one_and_all():
 
 def test_apply_jeans_all_gives_each_object_its_own_garment():
     photo = scene()
-    result = apply_jeans(photo.image, objects="all", **FIT)
+    result = apply_jeans(photo.image, objects="all", detector="none", **FIT)
     report = result.report()
     assert len(result.objects) == len(report["objects"]) == 2
     entries = sorted(report["objects"], key=lambda entry: entry["box"][0])
@@ -208,7 +209,7 @@ def two_png(tmp_path):
 
 
 def test_cli_objects_all(two_png, run_cli):
-    result = run_cli(two_png, "--objects", "all", "--json", "--svg", "-v", *CLI_FIT)
+    result = run_cli(two_png, "--objects", "all", "--detector", "none", "--json", "--svg", "-v", *CLI_FIT)
     assert result.exit_code == 0, result.stderr
     report = json.loads(two_png.with_name("two.jeans.json").read_text())
     entries = sorted(report["objects"], key=lambda entry: entry["box"][0])

@@ -79,7 +79,7 @@ def test_any_array_like_photo_is_taken_as_its_array():
 
 def test_report_says_why_auto_took_its_subject():
     photo, mask = synthetic_photo()
-    result = apply_jeans(photo, iterations=10)
+    result = apply_jeans(photo, iterations=10, detector="none")  # classical finding's reasons
     subject = result.report()["subject"]
     details = result.silhouette.details
     keys = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts")

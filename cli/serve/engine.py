@@ -54,6 +54,10 @@ ANIMATION_FRAMES = 40
 CONTOUR_TOLERANCE = 1.5
 #: Fitted results kept per photo (the latest clicks, and a download's): each holds full-size masks.
 FITS_KEPT = 3
+#: How the page finds a photo's subject: classical finding, for now. The page's clicks,
+#: negative clicks alone and hover preview edit classical auto's subject; the detector's
+#: subject comes to the page with the clicks that start from it (issue 47).
+DETECTOR = "none"
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,7 @@ class RenderOptions:
             side_by_side=self.side_by_side,
             backend=backend,
             max_pixels=max_pixels,
+            detector=DETECTOR,
         )
 
 
@@ -249,7 +254,9 @@ def open_photo(
     from jeanscv.subject.photo import SharedHypotheses
 
     shared = shared or SharedHypotheses()  # auto's hypotheses, cut once for the click session too
-    silhouettes, kind, pixels, loaded = api.prepare_input(path, max_pixels=max_pixels, shared=shared, subject=subject)
+    silhouettes, kind, pixels, loaded = api.prepare_input(
+        path, max_pixels=max_pixels, shared=shared, subject=subject, detector=DETECTOR
+    )
     if kind == "silhouette":
         first = silhouettes[0]
         size = tuple(int(v) for v in first.framing.image_size)

@@ -77,7 +77,7 @@ def write_folder_outputs(
     included), with auto's hypotheses from ``shared`` where they are cut already (the
     same bytes); JeansError with the failure's one-line reason. Returns whether its
     subject may be the wrong thing (None where that does not apply: clicks or a drawing)."""
-    options = JeansOptions(backend=backend, max_pixels=max_pixels)
+    options = JeansOptions(backend=backend, max_pixels=max_pixels, detector=engine.DETECTOR)
     outcome = worker.process(job, options, overwrite=True, shared=shared)
     if outcome.status == "failed":
         raise JeansError(outcome.error)

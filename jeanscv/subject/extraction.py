@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import JeansError
 from ..geometry import mask_box
-from ..options import OBJECTS
+from ..options import ANIMAL_CLASSES, OBJECTS
 from .framing import frame_mask
 from .silhouettes import SUBJECT_KEYS, Silhouette
 from .silhouettes import box_of as _box_of
@@ -40,6 +40,9 @@ def extract_silhouette(
     """
     from .photo import segment
     from .plugins import is_plugin_silhouette_method, segment_with
+
+    if subject in ANIMAL_CLASSES:  # classical cues know animals, not their classes
+        subject = "animal"
 
     if mask is None and is_plugin_silhouette_method(method):
         # A plugin extractor takes the image alone: threshold and rect are built-in options.
@@ -94,6 +97,7 @@ def extract_silhouettes(
     mask: np.ndarray | None = None,
     shared: SharedHypotheses | None = None,
     subject: str = "auto",
+    detector: str = "auto",
 ) -> list[Silhouette]:
     """The objects of a photo ``(H, W, 3|4)`` uint8, each segmented and framed on its own.
 
@@ -101,7 +105,13 @@ def extract_silhouettes(
     separate object of the subject mask, largest first (specks under 10% of the largest
     are dropped). ``subject``: what automatic finding looks for (``auto``, ``animal``,
     ``person``, ``object``): with ``"one"`` the most prominent animal, with ``"all"``
-    every animal found (see :func:`jeanscv.subject.photo.segment`).
+    every animal found (see :func:`jeanscv.subject.photo.segment`); an animal class
+    (``dog``) prefers that animal.
+
+    ``detector``: ``auto`` lets the shipped detector (:mod:`jeanscv.detect`) say where the
+    subject is: the most prominent detection of the kind asked for (``objects="all"``:
+    each) is cut inside its box (:mod:`jeanscv.subject.detected`), method ``detector``;
+    where it finds none, or with ``none``, classical finding as before.
 
     Clicks fix the subject (``(x, y)`` image pixels): ``points`` are the positive clicks
     of one object and ``background_points`` its negative ones; ``clicks`` gives several
@@ -128,6 +138,10 @@ def extract_silhouettes(
             raise JeansError("clicks refine the automatic segmentation: they cannot be combined with a mask")
         return _mask_objects(pixels, method, objects, points, threshold, rect, mask)
     wanted = object_clicks(points, background_points, clicks, box)
+    if not wanted and method == "auto" and rect is None:
+        found = _detected_silhouettes(pixels, objects, subject, detector)
+        if found:
+            return found
     if not wanted:
         main = extract_silhouette(
             pixels, method, threshold=threshold, rect=rect, shared=shared, subject=subject, several=objects == "all"
@@ -160,6 +174,45 @@ def extract_silhouettes(
             if np.count_nonzero(obj.mask & ~covered) > 0.5 * obj.area:
                 chosen.append(_object_silhouette(obj, main))
     return chosen
+
+
+def _detected_silhouettes(pixels: np.ndarray, objects: str, subject: str, detector: str) -> list[Silhouette]:
+    """The detector's subject (``objects="all"``: every detected object of the kind asked
+    for), each cut inside its box; empty where it finds none, or the photo's alpha
+    channel already is the silhouette."""
+    import warnings
+
+    from . import detected
+    from .interactive import WORKING_SIZE
+    from .photo import _alpha_meaningful
+
+    if pixels.ndim == 3 and pixels.shape[2] == 4 and _alpha_meaningful(pixels[..., 3]):
+        return []
+    found, problem = detected.find(pixels, detector)
+    if problem:
+        warnings.warn(f"jeanscv: {problem}", detected.DetectorWarning, stacklevel=3)
+    chosen = detected.wanted(found, subject, pixels.shape[:2])
+    if objects == "one":
+        chosen = chosen[:1]
+    segmentations = detected.detected_segmentations(pixels, chosen, WORKING_SIZE)
+    pairs = [(d, s) for d, s in zip(chosen, segmentations) if s is not None]
+    if not pairs:
+        return []
+    if len(pairs) > 1:
+        from .clicks import ObjectClicks
+
+        boxes = [ObjectClicks((), (), d.box) for d, _ in pairs]
+        pairs = list(zip([d for d, _ in pairs], _disjoint([s for _, s in pairs], boxes)))
+    result = []
+    for index, (detection, segmentation) in enumerate(pairs):
+        silhouette = _framed(segmentation)
+        others = [d for d in chosen if d is not detection]
+        silhouette.details.update(detected.subject_details(detection, others, found, segmentation.mask, subject))
+        if index:
+            silhouette.details["uncertain"] = False  # the note speaks of the main subject
+            silhouette.details["doubts"] = []
+        result.append(silhouette)
+    return result
 
 
 def clicked_silhouettes(session, objects) -> list[Silhouette]:

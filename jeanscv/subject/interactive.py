@@ -39,7 +39,8 @@ from jeanscv.errors import JeansError
 from jeanscv.geometry import mask_box
 from jeanscv.subject.clicks import Box, ObjectClicks
 
-from .box_cut import box_cut, box_interior, box_recut, box_score
+from .box_cut import box_interior, box_recut, box_score
+from .boxed import at_full_size, box_alone
 from .click_masks import (
     box_mask,
     box_pixels,
@@ -67,7 +68,6 @@ from .grabcut import cut_pool
 from .masks import (
     MIN_AREA_FRACTION,
     downscale,
-    outer_contour,
     resize_mask,
     shape_for,
 )
@@ -179,23 +179,7 @@ class ClickSession:
                 raise JeansError("nothing is left of the automatic subject after those clicks")
             where = "in that box" if clicks.box is not None else "there"
             raise JeansError(f"nothing found {where}: click inside the subject")
-        height, width = self.shape
-        full = resize_mask(working, (width, height))
-        if clicks.box is not None:
-            full &= box_mask(box_pixels(clicks.box, (width, height)), full.shape)
-        for x, y in positive:  # the clicked pixels themselves, whatever the upsampling did
-            full[int(y), int(x)] = True
-        for x, y in negative:
-            full[int(y), int(x)] = False
-        contour = outer_contour(working, (width / self.size[0], height / self.size[1]))
-        details = {
-            "positive": [list(map(float, p)) for p in positive],
-            "negative": [list(map(float, p)) for p in negative],
-            **({"box": [float(v) for v in clicks.box]} if clicks.box is not None else {}),
-            "working_shape": (self.size[1], self.size[0]),
-            "area_fraction": round(float(working.mean()), 4),
-        }
-        return Segmentation(mask=full, method="clicks", contour=contour, details=details)
+        return at_full_size(working, self.shape, positive, negative, clicks.box)
 
     def working_mask(
         self, positive: Sequence[Point], negative: Sequence[Point] = (), box: Box | None = None
@@ -240,11 +224,7 @@ class ClickSession:
         x0, y0, x1, y1 = working = box_pixels(box, (width, height), self.size)
         inside = box_mask(working, self.rgb.shape[:2])
         if not clicks:
-            # Cut on the photo's own pixels (a crop of it), then onto the working copy,
-            # where the boundary is refined like a click's.
-            mask = resize_mask(box_cut(self._rgb, box), self.size) & inside
-            mask = self._pixels.refine(mask) & inside if mask.any() else mask
-            return self._remember(key, mask)
+            return self._remember(key, box_alone(self._rgb, box, self.size, self._pixels))
         previous = self._boxed(box, clicks[:-1])
         # Every piece of the box's object stays, whatever the clicks add: a deepest point
         # of each is kept beside the positive clicks. They are no clicks: a negative

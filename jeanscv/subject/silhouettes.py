@@ -17,9 +17,10 @@ from .framing import Framing, frame_mask, identity_framing
 #: The auto segmentation's ``details`` that say which subject it took and how sure it is:
 #: the winning hypothesis, why it won, its mean IoU with the others, the subject asked
 #: for (``subject``: auto, animal, person, object) and the kind found, whether it may be
-#: the wrong thing (``uncertain``) and why (``doubts``). The report gives them as
-#: ``subject``; each object split from the subject keeps them.
-SUBJECT_KEYS = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts")
+#: the wrong thing (``uncertain``) and why (``doubts``); where the detector found it, the
+#: ``detection`` dressed and every one it made (``detections``: class, score, box in image
+#: pixels). The report gives them as ``subject``; each object split from the subject keeps them.
+SUBJECT_KEYS = ("chosen", "reason", "consensus", "subject", "kind", "uncertain", "doubts", "detection", "detections")
 
 
 @dataclass

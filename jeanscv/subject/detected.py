@@ -1,0 +1,148 @@
+"""Automatic finding with the shipped detector (:mod:`jeanscv.detect`): which detected
+object is the subject, its mask, and how sure that is.
+
+The detector says where the animal is; the cut inside its box stays classical (the box
+engine a person's box uses, :func:`.boxed.segment_box`). Where it finds nothing of what
+is asked for, automatic finding is the classical one, unchanged (:mod:`.photo`).
+
+Which object: among the detections of the wanted kind (``auto`` and ``animal``: every
+animal class as one, since a running dog is called a cat or a horse from frame to frame
+while its box stays on it; ``person``; or one animal class, preferred over the others),
+overlapping boxes of one object are merged, and the most prominent wins: its score
+times the square root of the share of the photo its box covers, so a large clear animal
+beats a small sure one in the corner.
+
+When to say "needs a look" (``uncertain``, with ``doubts``): a second object of the
+wanted kind about as prominent; a weak score; a cut that disagrees with its box (a tight
+box's object reaches across it).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..detect import ANIMALS, Detection, DetectorUnavailable, detect
+from ..errors import JeansError
+from ..geometry import mask_box
+from ..options import ANIMAL_CLASSES
+
+
+class DetectorWarning(UserWarning):
+    """The detector could not be used (a model file missing or altered): the subject is
+    found without it."""
+
+
+#: Boxes of one object under different classes overlap at least this much (box IoU).
+SAME_OBJECT = 0.6
+#: A second object at least this share of the first's prominence makes the pick unsure.
+RIVAL = 0.6
+#: Scores under this make the pick unsure.
+WEAK_SCORE = 0.45
+#: A cut whose own box overlaps the detection's box less than this disagrees with it.
+DISAGREES = 0.55
+
+
+def box_iou(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+    """IoU of two ``(x0, y0, x1, y1)`` boxes."""
+    width = min(a[2], b[2]) - max(a[0], b[0])
+    height = min(a[3], b[3]) - max(a[1], b[1])
+    if width <= 0 or height <= 0:
+        return 0.0
+    inter = width * height
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return inter / union if union > 0 else 0.0
+
+
+def prominence(detection: Detection, shape: tuple[int, int]) -> float:
+    """Score times the square root of the share of the ``(H, W)`` photo the box covers."""
+    x0, y0, x1, y1 = detection.box
+    share = max(0.0, x1 - x0) * max(0.0, y1 - y0) / float(shape[0] * shape[1])
+    return detection.score * math.sqrt(min(1.0, share))
+
+
+def wanted(detections: list[Detection], subject: str, shape: tuple[int, int]) -> list[Detection]:
+    """The detections ``subject`` asks for, one per object, most prominent first (a named
+    animal class before the other animals); empty for ``object``."""
+    if subject in ("auto", "animal") or subject in ANIMAL_CLASSES:
+        pool = [d for d in detections if d.label in ANIMALS]
+    elif subject == "person":
+        pool = [d for d in detections if d.label == "person"]
+    else:
+        return []
+    ranked = sorted(pool, key=lambda d: (d.label == subject, prominence(d, shape)), reverse=True)
+    kept: list[Detection] = []
+    for detection in ranked:  # one object's boxes under several classes: the first stands for it
+        if all(box_iou(detection.box, other.box) < SAME_OBJECT for other in kept):
+            kept.append(detection)
+    return kept
+
+
+def detection_json(detection: Detection) -> dict:
+    """A detection as the report gives it: class, score, box in image pixels."""
+    return {
+        "class": detection.label,
+        "score": round(detection.score, 3),
+        "box": [round(v, 1) for v in detection.box],
+    }
+
+
+def doubts(chosen: Detection, others: list[Detection], mask: np.ndarray, shape: tuple[int, int]) -> list[str]:
+    """Why the detector's pick may be the wrong thing (empty: sure)."""
+    found = []
+    if others and prominence(others[0], shape) >= RIVAL * prominence(chosen, shape):
+        found.append(f"two of similar size: a {chosen.label} and a {others[0].label}")
+    if chosen.score < WEAK_SCORE:
+        found.append(f"the detector is unsure ({chosen.label} {chosen.score:.2f})")
+    cut = mask_box(mask)  # (x, y, w, h)
+    if box_iou((cut[0], cut[1], cut[0] + cut[2], cut[1] + cut[3]), chosen.box) < DISAGREES:
+        found.append(f"the cut does not fill the {chosen.label}'s box")
+    return found
+
+
+def find(pixels: np.ndarray, detector: str) -> tuple[list[Detection], str | None]:
+    """The detections of ``pixels`` (``detector``: ``auto`` the shipped model, ``none``
+    nothing), and a warning line where the model cannot be used (then none)."""
+    if detector == "none":
+        return [], None
+    try:
+        return detect(pixels), None
+    except DetectorUnavailable as exc:
+        return [], f"{exc}; finding the subject without it"
+
+
+def detected_segmentations(pixels: np.ndarray, chosen: list[Detection], working_size: int) -> list:
+    """The cut inside each chosen box (:func:`.boxed.segment_box`), None where it holds
+    no object (fewer than 0.5% of the photo's pixels)."""
+    from .boxed import segment_box
+    from .masks import MIN_AREA_FRACTION
+
+    rgb = np.ascontiguousarray(pixels[..., :3])
+    found = []
+    for detection in chosen:
+        try:
+            segmentation = segment_box(rgb, detection.box, working_size)
+        except JeansError:
+            segmentation = None
+        if segmentation is not None and segmentation.mask.mean() < MIN_AREA_FRACTION:
+            segmentation = None
+        found.append(segmentation)
+    return found
+
+
+def subject_details(chosen: Detection, others: list[Detection], all_found: list[Detection], mask, subject: str):
+    """The silhouette's ``details`` that say what was dressed and how sure that is."""
+    shape = mask.shape
+    reasons = doubts(chosen, others, mask, shape)
+    kind = "person" if chosen.label == "person" else "animal"
+    return {
+        "chosen": "detector",
+        "reason": f"the detector found a {chosen.label} ({chosen.score:.2f})",
+        "subject": subject,
+        "kind": kind,
+        "uncertain": bool(reasons),
+        "doubts": reasons,
+        "detections": [detection_json(d) for d in all_found],
+        "detection": detection_json(chosen),
+    }

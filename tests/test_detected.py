@@ -1,0 +1,151 @@
+"""Automatic finding with the detector (jeanscv.subject.detected): which detection is the
+subject, how sure, and the cut inside its box; the detector itself is stood in for by
+fixed detections, so each case has an exact expected answer."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from jeanscv.detect import Detection, DetectorUnavailable
+from jeanscv.errors import JeansError
+from jeanscv.options import JeansOptions
+from jeanscv.subject import detected
+from jeanscv.subject.extraction import extract_silhouettes
+
+
+def _d(label: str, score: float, box: tuple[float, float, float, float]) -> Detection:
+    return Detection(label, 0, score, box)
+
+
+def test_box_iou_exact():
+    assert detected.box_iou((0, 0, 10, 10), (0, 0, 10, 10)) == 1.0
+    assert detected.box_iou((0, 0, 10, 10), (5, 0, 15, 10)) == pytest.approx(50 / 150)
+    assert detected.box_iou((0, 0, 10, 10), (10, 0, 20, 10)) == 0.0
+
+
+def test_prominence_is_score_times_root_of_the_box_share():
+    assert detected.prominence(_d("cat", 0.8, (0, 0, 50, 50)), (100, 100)) == pytest.approx(0.8 * 0.5)
+    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8)
+
+
+def test_the_most_prominent_animal_wins_over_a_surer_small_one_and_people():
+    shape = (100, 100)
+    person = _d("person", 0.95, (0, 0, 100, 100))
+    small_cat = _d("cat", 0.9, (0, 0, 10, 10))  # 0.9 * 0.1
+    big_dog = _d("dog", 0.5, (20, 20, 80, 80))  # 0.5 * 0.6
+    assert detected.wanted([person, small_cat, big_dog], "auto", shape) == [big_dog, small_cat]
+    assert detected.wanted([person, small_cat, big_dog], "animal", shape) == [big_dog, small_cat]
+    assert detected.wanted([person, small_cat, big_dog], "person", shape) == [person]
+    assert detected.wanted([person, small_cat, big_dog], "object", shape) == []
+    # A named class comes before the other animals, however prominent they are.
+    assert detected.wanted([person, small_cat, big_dog], "cat", shape) == [small_cat, big_dog]
+
+
+def test_one_animal_called_two_names_is_one_object():
+    cat = _d("cat", 0.56, (2, 0, 439, 296))
+    dog = _d("dog", 0.40, (1, 0, 440, 297))
+    assert detected.wanted([dog, cat], "auto", (300, 451)) == [cat]
+
+
+def test_doubts_say_why_a_pick_may_be_wrong():
+    shape = (100, 100)
+    mask = np.zeros(shape, bool)
+    mask[20:80, 20:80] = True
+    cat = _d("cat", 0.8, (20, 20, 80, 80))
+    assert detected.doubts(cat, [], mask, shape) == []
+    assert detected.doubts(cat, [_d("dog", 0.7, (0, 0, 55, 55))], mask, shape) == [
+        "two of similar size: a cat and a dog"
+    ]
+    assert detected.doubts(cat, [_d("dog", 0.7, (0, 0, 20, 20))], mask, shape) == []  # far less prominent
+    assert detected.doubts(_d("cat", 0.4, cat.box), [], mask, shape) == ["the detector is unsure (cat 0.40)"]
+    corner = np.zeros(shape, bool)
+    corner[20:40, 20:40] = True
+    assert detected.doubts(cat, [], corner, shape) == ["the cut does not fill the cat's box"]
+
+
+def _photo() -> tuple[np.ndarray, np.ndarray]:
+    """A dark textured disc (the 'animal') on a light textured floor, and its mask."""
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[:240, :320]
+    disc = (xx - 200) ** 2 + (yy - 130) ** 2 < 55**2
+    pixels = np.where(disc[..., None], (70, 45, 30), (210, 205, 190)).astype(np.int16)
+    pixels += rng.integers(-10, 11, pixels.shape)
+    return np.clip(pixels, 0, 255).astype(np.uint8), disc
+
+
+@pytest.fixture
+def stand_in(monkeypatch):
+    """The detector replaced by a function returning what the test sets."""
+    found: list = []
+
+    def detect(pixels):
+        return list(found)
+
+    monkeypatch.setattr(detected, "detect", detect)
+    return found
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / (a | b).sum())
+
+
+def test_the_detected_animals_box_is_cut_and_reported(stand_in):
+    pixels, disc = _photo()
+    stand_in += [_d("person", 0.9, (0, 0, 120, 240)), _d("dog", 0.7, (140, 70, 260, 190))]
+    (silhouette,) = extract_silhouettes(pixels)
+    assert silhouette.method == "detector"
+    assert _iou(silhouette.mask >= 0.5, disc) > 0.95
+    assert not (silhouette.mask[:, :140] >= 0.5).any()  # nothing outside the dog's box
+    details = silhouette.details
+    assert details["detection"] == {"class": "dog", "score": 0.7, "box": [140.0, 70.0, 260.0, 190.0]}
+    assert [d["class"] for d in details["detections"]] == ["person", "dog"]
+    assert details["kind"] == "animal" and details["uncertain"] is False and details["doubts"] == []
+
+
+def test_with_no_animal_detected_or_detector_none_finding_is_classical(stand_in):
+    pixels, disc = _photo()
+    stand_in += [_d("person", 0.9, (0, 0, 120, 240))]
+    (silhouette,) = extract_silhouettes(pixels)
+    assert silhouette.method != "detector" and "detection" not in silhouette.details
+    classical = extract_silhouettes(pixels, detector="none")[0]
+    np.testing.assert_array_equal(silhouette.mask, classical.mask)
+    stand_in[:] = [_d("dog", 0.7, (140, 70, 260, 190))]
+    assert extract_silhouettes(pixels, detector="none")[0].method != "detector"
+    assert extract_silhouettes(pixels, subject="object")[0].method != "detector"
+
+
+def test_objects_all_dresses_each_detected_animal_apart(stand_in):
+    pixels, disc = _photo()
+    yy, xx = np.mgrid[:240, :320]
+    second = (xx - 70) ** 2 + (yy - 120) ** 2 < 40**2
+    pixels[second] = (40, 60, 90)
+    stand_in += [_d("dog", 0.7, (140, 70, 260, 190)), _d("cat", 0.6, (25, 75, 115, 165))]
+    found = extract_silhouettes(pixels, objects="all")
+    assert [s.details["detection"]["class"] for s in found] == ["dog", "cat"]
+    assert _iou(found[0].mask >= 0.5, disc) > 0.95 and _iou(found[1].mask >= 0.5, second) > 0.9
+    assert not ((found[0].mask >= 0.5) & (found[1].mask >= 0.5)).any()
+
+
+def test_a_missing_model_warns_in_one_line_and_finding_goes_on(monkeypatch):
+    pixels, _ = _photo()
+
+    def broken(pixels):
+        raise DetectorUnavailable("detector model file missing: nanodet.bin")
+
+    monkeypatch.setattr(detected, "detect", broken)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (silhouette,) = extract_silhouettes(pixels)
+    assert silhouette.method != "detector"
+    assert [str(w.message) for w in caught if w.category is detected.DetectorWarning] == [
+        "jeanscv: detector model file missing: nanodet.bin; finding the subject without it"
+    ]
+
+
+def test_options_know_the_detector_and_animal_classes():
+    assert JeansOptions(subject="dog", detector="none").subject == "dog"
+    with pytest.raises(JeansError, match="unknown detector 'yolo'"):
+        JeansOptions(detector="yolo")
