@@ -2,7 +2,8 @@
 ``../shared/pet_photos``).
 
     python -m bench.real_photos [--set real|pets|both] [--subject auto|animal|person|object]
-                                [--no-fit] [--only NAME,...] [--sheets FOLDER] [--json PATH]
+                                [--detector auto|none] [--no-fit] [--only NAME,...]
+                                [--sheets FOLDER] [--json PATH]
 
 Per photo and on average, each set on its own: the IoU of the subject mask with the
 reference mask, the method chosen (marked uncertain where the subject may be the wrong
@@ -11,8 +12,9 @@ on the reference subject, the share of the subject they cover, their tilt and wh
 all six rule checks pass. A set's summary line also says how the "unsure" note did: of
 the wrong picks (jeans under 85% on the subject) how many it flagged (hits), and of the
 right ones how many (false alarms). Writes a contact sheet per set (photo | reference |
-found mask | result) for looking at, ``docs/real_photos.jpg`` and ``docs/pet_photos.jpg``
-by default.
+found mask, with the detector's boxes, class and score | result) for looking at,
+``docs/real_photos.jpg`` and ``docs/pet_photos.jpg`` by default. ``--detector none``
+measures classical finding alone (the detector's own time per photo: ``bench.detector``).
 
 The real photos' reference masks are U-2-Net's published predictions (see the folder's
 README): a strong learned model's answer, not hand labels. The pet photos' masks are
@@ -92,7 +94,22 @@ def contact_sheet(rows: list[list[np.ndarray]], columns: int = 2, gap: int = 6) 
 SETS = {"real": REAL_PHOTOS, "pets": PET_PHOTOS}
 
 
-def measure_photo(path: Path, subject: str, fit: bool) -> tuple[dict, list[np.ndarray]]:
+def _boxes(image: np.ndarray, detections: list[dict], dressed: dict | None) -> np.ndarray:
+    """``image`` with each detection's box and ``class score`` drawn (the dressed one in
+    green, the others in red)."""
+    out = image.copy()
+    thickness = max(1, image.shape[0] // 150)
+    for detection in detections:
+        colour = (40, 220, 40) if detection == dressed else (230, 40, 40)
+        x0, y0, x1, y1 = (int(round(v)) for v in detection["box"])
+        cv2.rectangle(out, (x0, y0), (x1, y1), colour, thickness)
+        text = f"{detection['class']} {detection['score']:.2f}"
+        scale = max(0.4, image.shape[0] / 600)
+        cv2.putText(out, text, (x0 + 3, max(y0, 12) + int(14 * scale)), cv2.FONT_HERSHEY_SIMPLEX, scale, colour, 2)
+    return out
+
+
+def measure_photo(path: Path, subject: str, fit: bool, detector: str = "auto") -> tuple[dict, list[np.ndarray]]:
     """One photo through auto (and the fit unless not ``fit``): its row's figures and
     its contact-sheet tiles."""
     import jeanscv
@@ -102,7 +119,7 @@ def measure_photo(path: Path, subject: str, fit: bool) -> tuple[dict, list[np.nd
     reference = reference_mask(path)
     start = time.process_time()
     try:
-        silhouette = jeanscv.extract_silhouette(pixels, subject=subject)
+        silhouette = jeanscv.extract_silhouettes(pixels, subject=subject, detector=detector)[0]
         found, method = silhouette.mask >= 0.5, silhouette.method
     except jeanscv.JeansError as error:
         silhouette, found, method = None, np.zeros_like(reference), f"error: {error}"
@@ -116,7 +133,10 @@ def measure_photo(path: Path, subject: str, fit: bool) -> tuple[dict, list[np.nd
     tiles = [
         _label(_tile(pixels), path.stem),
         _label(_tile(_overlay(pixels, reference)), "reference"),
-        _label(_tile(_overlay(pixels, found)), f"found {row['iou']:.2f}" + (" unsure" if row["uncertain"] else "")),
+        _label(
+            _tile(_boxes(_overlay(pixels, found), details.get("detections", []), details.get("detection"))),
+            f"found {row['iou']:.2f}" + (" unsure" if row["uncertain"] else ""),
+        ),
     ]
     if fit and silhouette is not None:
         result = jeanscv.fit(silhouette)
@@ -165,6 +185,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--set", choices=(*SETS, "both"), default="both", help="which shared folder(s)")
     parser.add_argument("--subject", default="auto", help="auto, animal, person or object")
+    parser.add_argument("--detector", choices=("auto", "none"), default="auto", help="auto: the shipped detector")
     parser.add_argument("--no-fit", action="store_true", help="segmentation only")
     parser.add_argument("--only", default="", help="comma-separated photo stems")
     parser.add_argument(
@@ -187,7 +208,7 @@ def main() -> None:
         print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |")
         rows, tiles = [], []
         for path in paths:
-            row, photo_tiles = measure_photo(path, args.subject, not args.no_fit)
+            row, photo_tiles = measure_photo(path, args.subject, not args.no_fit, args.detector)
             rows.append(row)
             tiles.append(photo_tiles)
             print(_cells(row), flush=True)
