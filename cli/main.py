@@ -278,7 +278,12 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     help="denim texture, or the paper's flat blue.",
 )
 @click.option("--clip/--no-clip", default=DEFAULTS.clip, show_default=True, help="Paint jeans only on the object.")
-@click.option("--top", metavar="TEXT", help="Meme caption along the top.")
+@click.option(
+    "--top",
+    metavar="TEXT",
+    help="Meme caption along the top; 'auto': \"how would a cat\" (the detected animal, where its class "
+    'is sure; else "how would this"), with "wear jeans?" along the bottom unless --bottom is given.',
+)
 @click.option("--bottom", metavar="TEXT", help="Meme caption along the bottom.")
 @click.option("--side-by-side", is_flag=True, help="Output the original and the result side by side.")
 @click.option(

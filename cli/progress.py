@@ -117,7 +117,8 @@ class Progress:
             info = outcome.info
             terms = " ".join(f"{k}={v:.4g}" for k, v in info.get("terms", {}).items())
             self._write(
-                f"    {info.get('kind')} (silhouette: {info.get('silhouette_method')}), device {info.get('device')}, "
+                f"    {info.get('kind')} (silhouette: {info.get('silhouette_method')}"
+                f"{', ' + info['detected'] if 'detected' in info else ''}), device {info.get('device')}, "
                 f"fit {info.get('fit_seconds', 0):.2f} s, objective {info.get('objective', 0):.6g}, "
                 f"paper total {info.get('paper_total', 0):.6g}"
             )

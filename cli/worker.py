@@ -114,13 +114,23 @@ def _ensure_folder(folder: Path) -> None:
         raise JeansError(f"cannot create output folder {folder}: {(exc.strerror or str(exc)).lower()}") from None
 
 
+#: ``--top auto``: the caption names the subject's class where the detector is sure of it.
+AUTO_CAPTION = "auto"
+
+
 def picture(result, options: JeansOptions):
     """The main output picture: the fit, captioned, optionally beside the original."""
     if not (options.top or options.bottom or options.side_by_side):
         return result.image  # no drawing: its imports (fonts, SVG escaping) are not free
     from .extras import add_captions, side_by_side
 
-    image = add_captions(result.image, options.top, options.bottom)
+    top, bottom = options.top, options.bottom
+    if top == AUTO_CAPTION:  # from what the detector says the subject is
+        from jeanscv.subject.detected import captions
+
+        top, automatic_bottom = captions(result.silhouette.details)
+        bottom = bottom or automatic_bottom
+    image = add_captions(result.image, top, bottom)
     if options.side_by_side:
         if result.kind == "silhouette":
             from jeanscv.paint.figures import figure
@@ -159,6 +169,8 @@ def _run(job: Job, options: JeansOptions, overwrite: bool, outcome: Outcome, sha
         "objects": [_object_info(obj) for obj in result.objects],
     }
     subject = result.silhouette.details
+    if "detection" in subject:  # what the detector said the subject is: "cat 0.82"
+        outcome.info["detected"] = f"{subject['detection']['class']} {subject['detection']['score']:.2f}"
     clicked = bool(options.points or options.box is not None or options.clicks is not None)
     if "uncertain" in subject and not clicked:
         # The report's line says whether the subject may be the wrong thing (a folder's
@@ -247,8 +259,13 @@ def clip_decorate(options):
         return None
     from .extras import add_captions, side_by_side
 
+    # A clip's subject is found classically (no detector's class): "how would this".
+    top, bottom = options.top, options.bottom
+    if top == AUTO_CAPTION:
+        top, bottom = "how would this", bottom or "wear jeans?"
+
     def decorate(painted, original):
-        captioned = add_captions(painted, options.top, options.bottom)
+        captioned = add_captions(painted, top, bottom)
         return side_by_side(original, captioned) if options.side_by_side else captioned
 
     return decorate

@@ -105,6 +105,15 @@ def test_the_detected_animals_box_is_cut_and_reported(stand_in):
     assert details["kind"] == "animal" and details["uncertain"] is False and details["doubts"] == []
 
 
+def test_a_rival_animal_about_as_prominent_makes_the_pick_unsure(stand_in):
+    pixels, _ = _photo()
+    stand_in += [_d("dog", 0.7, (140, 70, 260, 190)), _d("cat", 0.6, (20, 60, 130, 180))]
+    (silhouette,) = extract_silhouettes(pixels)
+    assert silhouette.details["detection"]["class"] == "dog"
+    assert silhouette.details["uncertain"] is True
+    assert silhouette.details["doubts"] == ["two of similar size: a dog and a cat"]
+
+
 def test_with_no_animal_detected_or_detector_none_finding_is_classical(stand_in):
     pixels, disc = _photo()
     stand_in += [_d("person", 0.9, (0, 0, 120, 240))]
@@ -149,3 +158,39 @@ def test_options_know_the_detector_and_animal_classes():
     assert JeansOptions(subject="dog", detector="none").subject == "dog"
     with pytest.raises(JeansError, match="unknown detector 'yolo'"):
         JeansOptions(detector="yolo")
+
+
+def test_the_bundled_cat_is_dressed_as_a_cat_and_the_report_says_so(tmp_path, run_cli, compiled_kernels):
+    """The README's first command: the detector's cat, named in the report line and the
+    JSON, and no "unsure" note (a newcomer's first sight)."""
+    import json
+
+    from conftest import ROOT
+
+    report = tmp_path / "run.jsonl"
+    result = run_cli(ROOT / "sample_images" / "cat.jpg", "-o", tmp_path, "--json", "--report", report, "-j", "1")
+    assert result.exit_code == 0, result.stderr
+    assert "note:" not in result.stderr and "may have the wrong subject" not in result.stderr
+    (line,) = [json.loads(x) for x in report.read_text().splitlines()]
+    assert line["silhouette_method"] == "detector" and line["detected"].startswith("cat 0.")
+    subject = json.loads((tmp_path / "cat.jeans.json").read_text())["subject"]
+    assert subject["detection"]["class"] == "cat" and subject["uncertain"] is False
+    assert {d["class"] for d in subject["detections"]} <= {"cat", "dog"}
+
+
+def test_top_auto_names_the_class_only_where_it_is_sure():
+    cat = {"class": "cat", "score": 0.56, "box": [2.0, 0.0, 439.0, 296.0]}
+    dog_same_box = {"class": "dog", "score": 0.40, "box": [1.0, 0.0, 440.0, 297.0]}
+    sure = {"detection": cat, "detections": [cat, dog_same_box]}
+    assert detected.sure_class(sure) == "cat"
+    assert detected.captions(sure) == ("how would a cat", "wear jeans?")
+    flicker = {"detection": cat, "detections": [cat, {**dog_same_box, "score": 0.45}]}  # 0.45 > 0.75 * 0.56
+    assert detected.sure_class(flicker) is None
+    assert detected.captions(flicker) == ("how would this", "wear jeans?")
+    weak = {"detection": {**cat, "score": 0.45}, "detections": []}
+    assert detected.sure_class(weak) is None
+    elsewhere = {"detection": cat, "detections": [cat, {**dog_same_box, "score": 0.9, "box": [500, 0, 600, 90]}]}
+    assert detected.sure_class(elsewhere) == "cat"  # another animal elsewhere is no doubt about the name
+    elephant = {"class": "elephant", "score": 0.8, "box": [0, 0, 10, 10]}
+    assert detected.captions({"detection": elephant})[0] == "how would an elephant"
+    assert detected.captions({}) == ("how would this", "wear jeans?")  # classical finding: no class

@@ -191,9 +191,8 @@ def _detected_silhouettes(pixels: np.ndarray, objects: str, subject: str, detect
     found, problem = detected.find(pixels, detector)
     if problem:
         warnings.warn(f"jeanscv: {problem}", detected.DetectorWarning, stacklevel=3)
-    chosen = detected.wanted(found, subject, pixels.shape[:2])
-    if objects == "one":
-        chosen = chosen[:1]
+    ranked = detected.wanted(found, subject, pixels.shape[:2])
+    chosen = ranked[:1] if objects == "one" else ranked
     segmentations = detected.detected_segmentations(pixels, chosen, WORKING_SIZE)
     pairs = [(d, s) for d, s in zip(chosen, segmentations) if s is not None]
     if not pairs:
@@ -206,7 +205,8 @@ def _detected_silhouettes(pixels: np.ndarray, objects: str, subject: str, detect
     result = []
     for index, (detection, segmentation) in enumerate(pairs):
         silhouette = _framed(segmentation)
-        others = [d for d in chosen if d is not detection]
+        # A rival about as prominent makes the one dressed unsure; with "all" both are dressed.
+        others = [] if objects == "all" else ranked[1:]
         silhouette.details.update(detected.subject_details(detection, others, found, segmentation.mask, subject))
         if index:
             silhouette.details["uncertain"] = False  # the note speaks of the main subject
