@@ -22,22 +22,9 @@ import numpy as np
 import torch
 
 from jeanscv.detect import ANIMALS, MODEL_DIR, detect, load
+from jeanscv.subject.detected import box_iou
 from jeanscv.subject.extraction import extract_silhouettes
-
-
-def box_iou(a: tuple[float, ...], b: tuple[float, ...]) -> float:
-    """IoU of two boxes (x0, y0, x1, y1)."""
-    w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = w * h
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return inter / union if union > 0 else 0.0
-
-
-def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
-    """IoU of two boolean masks."""
-    union = np.logical_or(a, b).sum()
-    return float(np.logical_and(a, b).sum() / union) if union else 0.0
+from testkit.synthetic_photos import iou as mask_iou
 
 
 def mask_bbox(mask: np.ndarray) -> tuple[float, float, float, float]:
@@ -47,8 +34,8 @@ def mask_bbox(mask: np.ndarray) -> tuple[float, float, float, float]:
 
 
 def engine_mask(rgb: np.ndarray, box: tuple[float, float, float, float] | None) -> np.ndarray:
-    """The box engine's mask for ``box`` (automatic finding for None), as bool."""
-    silhouettes = extract_silhouettes(rgb, box=box) if box is not None else extract_silhouettes(rgb)
+    """The box engine's mask for ``box`` (classical automatic finding for None), as bool."""
+    silhouettes = extract_silhouettes(rgb, box=box) if box is not None else extract_silhouettes(rgb, detector="none")
     return np.asarray(silhouettes[0].mask) > 0.5
 
 
