@@ -2,7 +2,7 @@
 not compiled yet), one 12-MP photo in a fresh process, the imports on that path, a folder of
 varied 12-MP photos with ``-j 2`` (and where a photo's time goes), and the default fit.
 
-    python -m bench.latency [--photos N] [--skip-cold]
+    python -m bench.latency [--photos N] [--skip-cold] [--pets] [--detector auto|none|both]
 
 - *first run*: ``jeanscv sample_images/cat.jpg`` with an empty kernel cache
   (``JEANSCV_CACHE_DIR``), as after ``pip install`` (which leaves the modules' bytecode
@@ -15,7 +15,10 @@ varied 12-MP photos with ``-j 2`` (and where a photo's time goes), and the defau
 - *batch*: the shared real photos (``../shared/real_photos``) upscaled to 12 MP, and a few
   textured synthetic scenes (bench.batch_speed), through ``jeanscv FOLDER -j 2``; then the
   stages of each photo in one process on one core as a ``-j`` worker runs them (decode,
-  segmentation, fit, denim, encode), in CPU seconds per photo after a warm-up photo.
+  segmentation, fit, denim, encode; the detector's own seconds apart), in CPU seconds per
+  photo after a warm-up photo. ``--pets``: the shared pet photos instead.
+- ``--detector both``: the fresh process, the batch and the stages with ``--detector
+  none`` (classical finding, as before the detector) and ``auto``, side by side in one run.
 - *fit*: CPU seconds of the default fit on the paper's silhouettes (median).
 
 Every process started here runs without ``PYTHONDONTWRITEBYTECODE``: ``pip install``
@@ -37,6 +40,7 @@ import time
 from pathlib import Path
 
 from bench.batch_speed import make_photos, run
+from bench.clicks import PETS as PET_PHOTOS
 from bench.clicks import SHARED as PHOTOS
 from bench.clicks import photo_pairs
 
@@ -82,6 +86,8 @@ IMPORTS = (
         "k = Objective(JEANS, 'all', {'coverage': 1.0}); k(JEANS.template[None], np.ones((16, 16)), 0.25);"
         "k.descend(BatchAdam(JEANS.template[None] / 16, 0.01), np.ones((16, 16)), 1, 0.25)",
     ),
+    ("torch (the detector's)", "import torch"),
+    ("loading the detector", "from jeanscv.detect import load; load()"),
 )
 
 # The snippets come as arguments, not by importing this module, whose own imports
@@ -112,12 +118,12 @@ def imports() -> list[tuple[str, float]]:
     return figures
 
 
-def upscaled_folder(folder: Path, count: int, synthetic: int) -> None:
-    """The shared real photos (first ``count``) as 12-MP JPEGs, plus ``synthetic`` textured scenes."""
+def upscaled_folder(folder: Path, count: int, synthetic: int, source: Path = PHOTOS) -> None:
+    """The shared photos of ``source`` (first ``count``) as 12-MP JPEGs, plus ``synthetic`` textured scenes."""
     from PIL import Image
 
     folder.mkdir(parents=True)
-    for name, path, _ in photo_pairs([PHOTOS])[:count]:
+    for name, path, _ in photo_pairs([source])[:count]:
         with Image.open(path) as image:
             image = image.convert("RGB")
             scale = (12e6 / (image.width * image.height)) ** 0.5
@@ -141,6 +147,15 @@ _STAGES = (
     "from jeanscv_cli.worker import reuse_freed_memory\n"
     "reuse_freed_memory()\n"
     "totals = {}\n"
+    "detector = sys.argv[2]\n"
+    "from jeanscv.subject import detected\n"
+    "plain_detect = detected.detect\n"
+    "def timed_detect(pixels):\n"
+    "    began = time.process_time()\n"
+    "    found = plain_detect(pixels)\n"
+    "    totals['detector'] = totals.get('detector', 0.0) + time.process_time() - began\n"
+    "    return found\n"
+    "detected.detect = timed_detect\n"
     "def timed(name, began):\n"
     "    now = time.process_time()\n"
     "    totals[name] = totals.get(name, 0.0) + now - began\n"
@@ -149,8 +164,10 @@ _STAGES = (
     "    began = time.process_time()\n"
     "    loaded = api.load_image(path)\n"
     "    began = timed('decode', began)\n"
-    "    silhouette = api.extract_silhouettes(loaded.pixels)[0]\n"
+    "    spent = totals.get('detector', 0.0)\n"
+    "    silhouette = api.extract_silhouettes(loaded.pixels, detector=detector)[0]\n"
     "    began = timed('segmentation', began)\n"
+    "    totals['segmentation'] -= totals.get('detector', 0.0) - spent\n"
     "    result = api.fit(silhouette)\n"
     "    began = timed('fit', began)\n"
     "    image = api.composite(loaded.pixels, result, silhouette)\n"
@@ -166,12 +183,13 @@ _STAGES = (
 )
 
 
-def stages(folder: Path) -> dict[str, float]:
-    """CPU seconds per photo of each stage, one process, one core, after a warm-up photo."""
+def stages(folder: Path, detector: str = "auto") -> dict[str, float]:
+    """CPU seconds per photo of each stage, one process, one core, after a warm-up photo
+    (the detector's own seconds apart from the rest of segmentation)."""
     import json
 
     done = subprocess.run(
-        [sys.executable, "-c", _STAGES, str(folder)],
+        [sys.executable, "-c", _STAGES, str(folder), detector],
         check=True,
         capture_output=True,
         text=True,
@@ -197,7 +215,15 @@ def main() -> None:
     parser.add_argument("--photos", type=int, default=18, help="shared photos in the batch (at most 18)")
     parser.add_argument("--synthetic", type=int, default=4, help="textured synthetic scenes in the batch")
     parser.add_argument("--skip-cold", action="store_true", help="skip the first run (a minute or so)")
+    parser.add_argument("--pets", action="store_true", help="the shared pet photos instead of the real photos")
+    parser.add_argument(
+        "--detector",
+        choices=("auto", "none", "both"),
+        default="auto",
+        help="automatic finding with the shipped detector, without, or both side by side",
+    )
     args = parser.parse_args()
+    detectors = ("none", "auto") if args.detector == "both" else (args.detector,)
     os.environ.pop("PYTHONDONTWRITEBYTECODE", None)  # as after pip install (see the module's docstring)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -206,12 +232,13 @@ def main() -> None:
             cold, warm, same = first_run(tmp / "first")
             rows.append(("first run", f"{cold:.1f} s (then {warm:.1f} s cached; same bytes: {same})"))
         folder = tmp / "photos"
-        upscaled_folder(folder, args.photos, args.synthetic)
+        upscaled_folder(folder, args.photos, args.synthetic, PET_PHOTOS if args.pets else PHOTOS)
         photos = sorted(folder.glob("*.jpg"))
-        one = [str(photos[0]), "-o", str(tmp / "one"), "-q", "--overwrite"]
-        _command(one)
-        fresh = statistics.median(_command(one) for _ in range(3))
-        rows.append(("fresh process", f"{fresh:.2f} s ({photos[0].name}, 12 MP)"))
+        for detector in detectors:
+            one = [str(photos[0]), "-o", str(tmp / "one"), "-q", "--overwrite", "--detector", detector]
+            _command(one)
+            fresh = statistics.median(_command(one) for _ in range(3))
+            rows.append(("fresh process", f"{fresh:.2f} s ({photos[0].name}, 12 MP, --detector {detector})"))
         figures = imports()
         heavy = sum(seconds for name, seconds in figures if name not in ("numpy", "OpenCV"))
         rows.append(
@@ -222,16 +249,26 @@ def main() -> None:
                 + ")",
             )
         )
-        wall, _ = run(folder, tmp / "out", 2)
-        rows.append(("batch", f"{wall / len(photos):.2f} s a photo ({len(photos)} photos, -j 2, {wall:.0f} s)"))
-        per_stage = stages(folder)
+        per_stage = {}
+        for detector in detectors:
+            wall, _ = run(folder, tmp / f"out-{detector}", 2, ["--detector", detector])
+            rows.append(
+                (
+                    "batch",
+                    f"{wall / len(photos):.2f} s a photo ({len(photos)} photos, -j 2, {wall:.0f} s, --detector {detector})",
+                )
+            )
+            per_stage[detector] = stages(folder, detector)
         rows.append(("fit", f"{fit_seconds():.3f} s"))
     print("| what a person waits for | now | target |\n|---|---|---|")
     for name, figure in rows:
         print(f"| {name} | {figure} | {TARGETS[name]} |")
     print("\nOne photo's stages (12 MP, one process, one core, as a -j worker: CPU seconds a photo):\n")
-    print("| " + " | ".join(per_stage) + " | total |\n|" + "---|" * (len(per_stage) + 1))
-    print("| " + " | ".join(f"{s:.3f}" for s in per_stage.values()) + f" | {sum(per_stage.values()):.3f} |")
+    names = list(dict.fromkeys(name for figures in per_stage.values() for name in figures))
+    print("| --detector | " + " | ".join(names) + " | total |\n|" + "---|" * (len(names) + 2))
+    for detector, figures in per_stage.items():
+        cells = " | ".join(f"{figures.get(name, 0.0):.3f}" for name in names)
+        print(f"| {detector} | {cells} | {sum(figures.values()):.3f} |")
 
 
 if __name__ == "__main__":
