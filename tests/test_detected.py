@@ -194,3 +194,17 @@ def test_top_auto_names_the_class_only_where_it_is_sure():
     elephant = {"class": "elephant", "score": 0.8, "box": [0, 0, 10, 10]}
     assert detected.captions({"detection": elephant})[0] == "how would an elephant"
     assert detected.captions({}) == ("how would this", "wear jeans?")  # classical finding: no class
+
+
+def test_negative_clicks_alone_edit_the_detectors_subject(stand_in):
+    """ "The automatic subject minus this" is the subject found without clicks: the
+    detector's dog here, where classical finding alone takes the blue square."""
+    pixels, disc = _photo()
+    pixels[60:200, 20:110] = (40, 60, 90)
+    square = np.zeros(disc.shape, bool)
+    square[60:200, 20:110] = True
+    stand_in.append(_d("dog", 0.7, (140, 70, 260, 190)))
+    (minus,) = extract_silhouettes(pixels, background_points=[(300, 10)])
+    assert _iou(minus.mask >= 0.5, disc) > 0.95
+    (classical,) = extract_silhouettes(pixels, background_points=[(300, 10)], detector="none")
+    assert _iou(classical.mask >= 0.5, square) > 0.95

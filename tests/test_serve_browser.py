@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from PIL import Image
 from test_objects import inside_point, share_on
-from test_serve import png_bytes, scene
+from test_serve import png_bytes, scene, two_cats
 from test_serve_cli import free_port
 
 from testkit.synthetic_photos import two_objects
@@ -568,7 +568,7 @@ def test_reset_undo_downloads_and_the_empty_page(server, page, browser, tmp_path
     assert page.locator("#overlay circle.click").count() == 0  # before the automatic result is in
     _let_go(page, "/render")
     page.evaluate("() => { window.__hold = false; }")
-    page.wait_for_function("() => document.getElementById('status').textContent.includes('found by')")
+    page.wait_for_function("() => document.getElementById('status').textContent.includes('found a dog (0.61)')")
     page.click("#undo")  # the Reset undone: the click is back
     assert page.locator("#overlay circle.click.pos").count() == 1
     page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
@@ -1143,3 +1143,100 @@ def test_a_gif_is_clicked_on_its_first_frame_played_and_downloaded(server, page,
     changed = np.abs(last - frames[4]).max(axis=-1) > 60
     assert changed[masks[4]].mean() > 0.05 and changed[~masks[4]].mean() < 0.01  # the jeans went with it
     assert page.problems == []
+
+
+def _found(page) -> list[dict]:
+    """The detected animals as the page shows them: label, whether dressed, box on screen."""
+    return page.evaluate("""() => [...document.querySelectorAll('#found .found-label')].map((label) => ({
+        text: label.textContent, dressed: label.getAttribute('aria-pressed') === 'true',
+        index: Number(label.dataset.index), label: label.getBoundingClientRect().toJSON() }))""")
+
+
+def _free_of_layers(page, x: float, y: float) -> bool:
+    """Whether a click at the screen's ``(x, y)`` reaches the photo itself (no layer drawn
+    over it takes it)."""
+    return page.evaluate("([x, y]) => document.elementFromPoint(x, y) === document.getElementById('result')", [x, y])
+
+
+@pytest.mark.parametrize("phone", [False, True], ids=["desktop", "phone"])
+def test_a_tap_on_a_detected_box_dresses_that_animal(server, browser, phone):
+    """The issue's wish: the page shows what the detector found, each animal's box with
+    its class and score, the dressed one highlighted and named in the status line; a
+    click inside another animal's box (or on its label) dresses that one, as a box; a
+    click elsewhere on the photo is a click as before. On a desktop and by touch on a
+    390x844 phone. ``JEANSCV_FOUND_SCREENSHOT=STEM`` saves ``STEM-desktop.png`` and
+    ``STEM-phone.png``."""
+    photo = two_cats()
+    shots = os.environ.get("JEANSCV_FOUND_SCREENSHOT")
+    options = {"viewport": {"width": 1280, "height": 860}}
+    if phone:
+        options = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
+    context = browser.new_context(**options)
+    try:
+        page = context.new_page()
+        problems = []
+        page.on("pageerror", lambda error: problems.append(str(error)))
+        page.on("console", lambda message: message.type == "error" and problems.append(message.text))
+        sent = []
+        page.on("request", lambda r: r.url.endswith("/render") and sent.append(json.loads(r.post_data)["objects"]))
+        page.goto(server + "/")
+        page.wait_for_selector("#garment option", state="attached")
+        _drop_photo(page, photo, "cats.png")
+        found = _found(page)
+        assert [f["text"] for f in found] == ["cat 0.60", "cat 0.51"], found
+        assert [f["dressed"] for f in found] == [True, False]  # the most prominent: the right one
+        assert "found a cat (0.60)" in page.inner_text("#status")
+        assert page.locator("#found .found-box").count() == 2
+        assert page.locator("#found .found-box.dressed").count() == 1
+        left = page.evaluate(
+            "() => document.querySelector('#found .found-box:not(.dressed)').getBoundingClientRect().toJSON()"
+        )
+        # The outlines let clicks through: inside a box and on its edge, the photo is what is clicked.
+        inside = (left["x"] + left["width"] * 0.5, left["y"] + left["height"] * 0.4)
+        assert _free_of_layers(page, *inside) and _free_of_layers(page, left["x"] + 1, inside[1])
+        label = found[0]["label"]  # the dressed one's label is no choice: the photo under it is clicked
+        assert _free_of_layers(page, label["x"] + label["width"] / 2, label["y"] + label["height"] / 2)
+        if shots:
+            page.screenshot(path=f"{shots}-{'phone' if phone else 'desktop'}.png")
+
+        # A click (a tap) inside the left cat's box dresses it, as a box.
+        (page.touchscreen.tap if phone else page.mouse.click)(*inside)
+        page.wait_for_function("() => document.getElementById('status').textContent.includes('as you chose')")
+        assert sent[-1] == [{"positive": [], "negative": [], "box": [4.2, 6.0, 395.6, 295.8]}]
+        assert [f["dressed"] for f in _found(page)] == [False, True]
+        assert "the cat (0.51), as you chose" in page.inner_text("#status")
+        right_end = page.evaluate(
+            "() => { const b = document.querySelector('#overlay path.outline').getBBox(); return b.x + b.width; }"
+        )
+        assert right_end < 400  # the subject is now the left cat (photo pixels)
+        if shots:
+            page.screenshot(path=f"{shots}-{'phone' if phone else 'desktop'}-chosen.png")
+
+        # Its label dresses the right one again; Undo goes back to the left one.
+        right = _found(page)[0]["label"]
+        (page.touchscreen.tap if phone else page.mouse.click)(
+            right["x"] + right["width"] / 2, right["y"] + right["height"] / 2
+        )
+        page.wait_for_function(
+            "() => document.querySelector('#found .found-label[data-index=\"0\"]').getAttribute('aria-pressed') === 'true'"
+        )
+        page.wait_for_function("() => !document.getElementById('status').classList.contains('busy')")
+        assert sent[-1] == [{"positive": [], "negative": [], "box": [545.0, 4.9, 961.4, 287.4]}]
+        assert page.locator("#overlay circle.click").count() == 0  # the label was no click on the photo
+        page.click("#bar-undo" if phone else "#undo")
+        page.wait_for_function(
+            "() => document.querySelector('#found .found-label[data-index=\"1\"]').getAttribute('aria-pressed') === 'true'"
+        )
+        page.wait_for_function("() => !document.getElementById('status').classList.contains('busy')")
+
+        # Outside every box a click is a click, as before: a positive point, no box.
+        page.click("#new-object")
+        gap = _point_at(page, 420, 150)  # between the two boxes
+        assert _free_of_layers(page, *gap)
+        (page.touchscreen.tap if phone else page.mouse.click)(*gap)
+        _wait_until(page, lambda: len(sent[-1]) == 2, 10, "the click outside the boxes sent nothing")
+        assert sent[-1][1]["positive"] and "box" not in sent[-1][1]
+        page.wait_for_function("() => !document.getElementById('status').classList.contains('busy')")
+        assert problems == []
+    finally:
+        context.close()

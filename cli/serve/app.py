@@ -24,7 +24,7 @@ from starlette.routing import Route
 from jeanscv.errors import JeansError
 from jeanscv.options import SUBJECTS
 
-from . import clips, engine, folder
+from . import clips, engine, folder, found
 from .answers import Refused, client_text  # noqa: F401 - client_text: the tests' name for it
 from .answers import attachment as _attachment
 from .answers import error as _error
@@ -61,6 +61,7 @@ _SCRIPTS = (
     "zoom.js",
     "cursor.js",
     "clip.js",
+    "found.js",
 )
 _STATIC = (
     {"/": ("index.html", "text/html; charset=utf-8")}
@@ -227,6 +228,8 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
             "height": photo.size[1],
             "objects": engine.page_objects(photo, objects),
             "summary": engine.report_summary(photo, objects),
+            # The detected animals the page offers, and which one wears the jeans.
+            "detections": found.page_detections(photo, clicks, objects),
             "clicks": clicks is not None,
             "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
         }

@@ -42,6 +42,7 @@ from jeanscv.subject.silhouettes import box_of
 from .. import worker
 from ..discover import Job
 from ..extras import optimisation_gif, svg_document
+from .found import offered_detections
 
 if TYPE_CHECKING:
     from jeanscv.subject.photo import SharedHypotheses
@@ -54,10 +55,11 @@ ANIMATION_FRAMES = 40
 CONTOUR_TOLERANCE = 1.5
 #: Fitted results kept per photo (the latest clicks, and a download's): each holds full-size masks.
 FITS_KEPT = 3
-#: How the page finds a photo's subject: classical finding, for now. The page's clicks,
-#: negative clicks alone and hover preview edit classical auto's subject; the detector's
-#: subject comes to the page with the clicks that start from it (issue 47).
-DETECTOR = "none"
+#: How the page finds a photo's subject: as the command line does, the shipped detector
+#: first (``--detector auto``). A negative click alone edits the subject the page shows
+#: (the photo's click session is given it: :meth:`Photo.session`). A clip's first frame
+#: is found classically, as the clip itself is (:mod:`.clips`).
+DETECTOR = "auto"
 
 
 @dataclass(frozen=True)
@@ -149,14 +151,38 @@ def kernels_warming() -> bool:
 
 
 def warm_up() -> None:
-    """Compile or load the fit kernels now, and have segmentation's colour tables built,
-    so the first photo does not wait for them."""
+    """Compile or load the fit kernels now, load the detector, and have segmentation's
+    colour tables built, so the first photo does not wait for them."""
     from jeanscv.fitting import _fast
     from jeanscv.subject.scene import prepare_lab_tables
 
     prepare_lab_tables()
+    if DETECTOR != "none":
+        _warm_detector()
     if default_backend() == "fast":
         _fast.warm_up()
+
+
+_detector_warming: threading.Thread | None = None
+
+
+def _warm_detector() -> None:
+    """Import torch and load the detector's model in the background, once per process
+    (about 0.9 s that the first photo would otherwise wait); a failure is the first
+    photo's to report (:func:`jeanscv.subject.detected.find`: classical finding, one line)."""
+    global _detector_warming
+
+    def load() -> None:
+        from jeanscv.detect import load as load_model
+
+        try:
+            load_model()
+        except Exception:  # noqa: BLE001 - reported where the photo needs the detector
+            pass
+
+    if _detector_warming is None:
+        _detector_warming = threading.Thread(target=load, name="jeanscv-warm-up-detector", daemon=True)
+        _detector_warming.start()
 
 
 @dataclass
@@ -186,6 +212,9 @@ class Photo:
     hover_lock: threading.Lock = field(default_factory=threading.Lock)  # one hover map made at a time
     fits: dict = field(default_factory=dict)  # (fit key, clicks key) -> [(silhouette, fit)]
     clip: object | None = None  # a clip's ClipSource (cli/serve/clips.py): this is its first frame
+    #: The detected animals the page offers ({"class", "score", "box"}, photo pixels, most
+    #: prominent first; the person or animal dressed by automatic finding among them).
+    detections: list = field(default_factory=list)
 
     @property
     def scale(self) -> float:
@@ -209,11 +238,14 @@ class Photo:
 
     def session(self):
         """The click session (made on first use: a few tenths of a second with the
-        automatic segmentation's hypotheses). Hold ``lock``."""
+        automatic segmentation's hypotheses). Negative clicks alone edit the automatic
+        subject the page shows (the detector's animal, or classical finding's subject),
+        which the session is given. Hold ``lock``."""
         if self._session is None:
             from jeanscv.subject.interactive import ClickSession
 
-            self._session = ClickSession(self.pixels, shared=self.shared)
+            shown = np.asarray(self.auto[0].mask) >= 0.5 if self.auto else None
+            self._session = ClickSession(self.pixels, shared=self.shared, automatic=shown)
             self.shared = None  # the session holds what it needs
         return self._session
 
@@ -242,12 +274,18 @@ def _figure_preview(picture: np.ndarray, silhouette) -> np.ndarray:
 
 
 def open_photo(
-    path: Path | np.ndarray, name: str, max_pixels: int, subject: str = "auto", shared: SharedHypotheses | None = None
+    path: Path | np.ndarray,
+    name: str,
+    max_pixels: int,
+    subject: str = "auto",
+    shared: SharedHypotheses | None = None,
+    detector: str = DETECTOR,
 ) -> Photo:
     """Decode and segment a file (an upload's temporary copy, or a folder's photo) or
     decoded pixels (a clip's first frame); ``subject``: what automatic finding looks for
     (``--subject``); ``shared``: the photo's hypotheses when they may be cut already
-    (a folder photo's, see :class:`.store.FolderCuts`).
+    (a folder photo's, see :class:`.store.FolderCuts`); ``detector``: ``auto`` (the
+    shipped detector first, as the command line) or ``none`` (classical finding: a clip's).
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """
@@ -255,7 +293,7 @@ def open_photo(
 
     shared = shared or SharedHypotheses()  # auto's hypotheses, cut once for the click session too
     silhouettes, kind, pixels, loaded = api.prepare_input(
-        path, max_pixels=max_pixels, shared=shared, subject=subject, detector=DETECTOR
+        path, max_pixels=max_pixels, shared=shared, subject=subject, detector=detector
     )
     if kind == "silhouette":
         first = silhouettes[0]
@@ -265,7 +303,9 @@ def open_photo(
     height, width = pixels.shape[:2]
     auto = [_compact(s) for s in silhouettes]
     preview = _downscale(pixels, PREVIEW_SIDE)
-    return Photo(name, kind, pixels, loaded, (width, height), preview, auto, shared=shared)
+    photo = Photo(name, kind, pixels, loaded, (width, height), preview, auto, shared=shared)
+    photo.detections = offered_detections(pixels, auto, photo.size, detector)
+    return photo
 
 
 def _compact(silhouette):
@@ -462,8 +502,14 @@ def report_summary(photo: Photo, objects: list) -> dict:
         "objective": round(float(first.fit.objective), 4),
         "uncertain": bool(details.get("uncertain", False)),
         "kind": details.get("kind", ""),  # what automatic finding took it for (animal, person, object)
+        # What the detector said the automatic subject is ({"class", "score"}), or None.
+        "detection": _named(details.get("detection")) if details.get("chosen") == "detector" else None,
     }
     return summary
+
+
+def _named(detection: dict | None) -> dict | None:
+    return None if not detection else {"class": detection["class"], "score": detection["score"]}
 
 
 # ------------------------------------------------------------------------- page clicks

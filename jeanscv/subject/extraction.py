@@ -158,7 +158,13 @@ def extract_silhouettes(
     height, width = pixels.shape[:2]
     Clicks(tuple(wanted)).check((width, height))
     shared = shared or SharedHypotheses()  # the session's hypotheses are auto's too
-    chosen = clicked_silhouettes(ClickSession(pixels, shared=shared), wanted)
+    automatic = None
+    if any(obj.edits_automatic for obj in wanted) and method == "auto" and rect is None:
+        # Negative clicks alone take something away from the automatic subject as it
+        # is found without clicks: the detector's where it finds one (as the page shows it).
+        found = _detected_silhouettes(pixels, "one", subject, detector)
+        automatic = np.asarray(found[0].mask) >= 0.5 if found else None
+    chosen = clicked_silhouettes(ClickSession(pixels, shared=shared, automatic=automatic), wanted)
     if objects == "all":
         try:
             main = extract_silhouette(

@@ -119,15 +119,31 @@ class ClickSession:
     segmented costs one step; the same clicks always give the same mask.
     """
 
-    def __init__(self, image: np.ndarray, *, working_size: int = WORKING_SIZE, shared: SharedHypotheses | None = None):
+    def __init__(
+        self,
+        image: np.ndarray,
+        *,
+        working_size: int = WORKING_SIZE,
+        shared: SharedHypotheses | None = None,
+        automatic: np.ndarray | None = None,
+    ):
         """``shared``: auto's hypotheses of this photo, when :func:`photo.segment` has cut
-        them already (or will: they are cut once, by whichever asks first)."""
+        them already (or will: they are cut once, by whichever asks first).
+        ``automatic``: the automatic subject as the caller shows it (an ``(H, W)`` bool
+        mask of the photo, e.g. the detector's), which negative clicks alone edit; by
+        default :func:`photo.segment`'s."""
         rgb, _ = _validate_image(image)
         self._rgb = rgb  # the box's cut crops the photo itself
         self._image = image  # for the automatic subject, which a negative click alone edits
         self.shape = rgb.shape[:2]
         height, width = self.shape
         self.size = shape_for(self.shape, working_size)  # (w, h) of the working copy
+        self._shown = None  # the caller's automatic subject, at working resolution
+        if automatic is not None:
+            automatic = np.asarray(automatic)
+            if automatic.shape != self.shape:
+                raise ValueError(f"automatic mask of shape {automatic.shape}, not the photo's {self.shape}")
+            self._shown = resize_mask(automatic.astype(bool, copy=False), self.size)
         self.rgb = downscale(rgb, self.size)
         scene_rgb = downscale(rgb, shape_for(self.shape, SCENE_SIZE))
         self._shared = shared or SharedHypotheses()
@@ -295,9 +311,12 @@ class ClickSession:
         return self._remember(key, mask)
 
     def _automatic(self) -> np.ndarray:
-        """The automatic subject at working resolution (empty when auto finds none)."""
+        """The automatic subject at working resolution (empty when auto finds none): the
+        caller's (``automatic``), else :func:`photo.segment`'s."""
         from .photo import segment
 
+        if self._shown is not None:
+            return self._shown.copy()
         try:
             found = segment(self._image, "auto", shared=self._shared).mask
         except JeansError:

@@ -1,6 +1,7 @@
 // Drawing on the photo: the objects' outlines and the clicks (an SVG over the picture),
 // and the fit played back.
 import { currentBox, handleSquares } from "./boxes.js";
+import { drawFound } from "./found.js";
 import { $, SVG_NS, state } from "./state.js";
 
 function rectangle(box, cls) {
@@ -18,6 +19,7 @@ function rectangle(box, cls) {
 function drawOverlay(animatedJeans = null, draftBox = null, adjusting = false) {
   const svg = $("overlay");
   svg.replaceChildren();
+  drawFound(); // the detected animals' boxes and labels
   const answer = state.result;
   if (!answer) return;
   svg.classList.toggle("no-marks", !state.marks);

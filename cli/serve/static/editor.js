@@ -3,10 +3,11 @@ import { updateMemeLink } from "./captions.js";
 import { adjusted, handleAt, showHandleCursor } from "./boxes.js";
 import { hideClip, showClip } from "./clip.js";
 import { drawOverlay, stopAnimation } from "./drawing.js";
+import { choiceWords, foundAt, foundWords, onChoose } from "./found.js";
 import { clearHover, forgetHover, loadHover } from "./hover.js";
 import { resetZoom } from "./zoom.js";
 import { post } from "./server.js";
-import { $, setStatus, showError, state } from "./state.js";
+import { $, clickedObjects, setStatus, showError, state } from "./state.js";
 
 function renderOptions() {
   return { style: $("style").value, garment: $("garment").value, posture: $("posture").value };
@@ -117,6 +118,7 @@ function start(answer, item) {
 
 // ------------------------------------------------------------------ results
 function show(answer) {
+  if (answer.key === undefined) answer.key = clicksKey(); // the clicks it was made from
   state.result = answer;
   stopAnimation();
   const image = $("result");
@@ -134,16 +136,24 @@ function show(answer) {
   describe(answer);
 }
 
-// The status line for a result: its photo, how many objects, and where they came from.
+// The status line for a result: its photo, and what wears the jeans: what was found
+// ("found a cat (0.82)": the detector's class and score; "found the subject": classical
+// finding), the animal chosen on the page, or the objects from the clicks.
 function describe(answer) {
   if (!answer) return;
   const summary = answer.summary;
   const count = summary.objects === 1 ? "1 object" : `${summary.objects} objects`;
-  let text = `${state.name}: ${count}, ${answer.clicks ? "from your clicks" : `found by ${summary.method}`}.`;
-  if (state.kind === "photo") {
-    text += answer.clicks ? "" : " Wrong thing? Click the one that should wear them.";
-    if (summary.uncertain && !answer.clicks) text = `${state.name}: not sure what the subject is. Click it.`;
+  if (state.kind !== "photo") {
+    setStatus(`${state.name}: ${count}, found by ${summary.method}.`);
+    return;
   }
+  const others = (answer.detections || []).some((d) => !d.dressed);
+  const choice = answer.clicks ? choiceWords(answer) : "";
+  let text;
+  if (choice) text = `${state.name}: ${choice}, as you chose.`;
+  else if (answer.clicks) text = `${state.name}: ${count}, from your clicks.`;
+  else if (summary.uncertain) text = `${state.name}: ${foundWords(answer)}, but not sure it is the subject. ${others ? "Tap another box or click" : "Click"} the right thing.`;
+  else text = `${state.name}: ${foundWords(answer)}. Wrong thing? ${others ? "Tap another box, or click" : "Click"} the one that should wear them.`;
   setStatus(text);
 }
 
@@ -163,6 +173,7 @@ async function rerender() {
   try {
     const objects = clickedObjects();
     const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
+    answer.key = JSON.stringify(objects);
     if (generation !== state.generation) return; // another photo since: not this one's
     if (sequence > state.shown) {
       state.shown = sequence;
@@ -220,6 +231,10 @@ function pointerDown(event) {
 function pointerMove(event) {
   if (!drag) {
     showHandleCursor(event);
+    // Over an animal's box that a click would dress: a hand, as over a link.
+    if (!$("frame").style.cursor && state.result && foundAt(photoPoint(event), state.negative || event.shiftKey) !== null) {
+      $("frame").style.cursor = "pointer";
+    }
     return;
   }
   if (!drag.moved && Math.hypot(event.clientX - drag.x, event.clientY - drag.y) < 6) return;
@@ -285,8 +300,15 @@ function addClick(event) {
 }
 
 // A click at ``point`` (photo pixels) for the current object: the pointer's, or the keyboard cursor's.
+// Inside a detected animal's box that is not dressed (the current object without clicks),
+// it dresses that animal instead (found.js).
 function addPoint(point, negative) {
   if (state.kind !== "photo" || !state.result) return;
+  const found = foundAt(point, negative);
+  if (found !== null) {
+    chooseDetection(found);
+    return;
+  }
   if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
   const object = state.objects[state.current];
   // A negative click first means "the automatic subject, minus this" (the server does it).
@@ -301,19 +323,35 @@ function emptyObject() {
   return { positive: [], negative: [], box: null };
 }
 
-// The clicks to send: the objects that have a positive click or a box.
-function clickedObjects() {
-  // Negative clicks alone are an object too: the automatic subject minus them.
-  return state.objects.filter((o) => o.positive.length > 0 || o.negative.length > 0 || o.box)
-    .map((o) => (o.box ? { positive: o.positive, negative: o.negative, box: o.box } : { positive: o.positive, negative: o.negative }));
+// A detected animal chosen (its label, or a click in its box): the current object becomes
+// that animal's box, sent as a drawn box is (one step to undo; its clicks, if it had
+// any, come back with Undo).
+function chooseDetection(index) {
+  const detection = state.result && state.result.detections && state.result.detections[index];
+  if (!detection || state.kind !== "photo" || !state.photo) return;
+  const box = detection.box.slice();
+  if (!state.objects[state.current]) state.objects[state.current] = emptyObject();
+  const object = state.objects[state.current];
+  if (object.positive.length || object.negative.length) {
+    state.history.push({ object: state.current, choose: box, before: JSON.stringify(object) });
+    state.objects[state.current] = { positive: [], negative: [], box };
+  } else {
+    state.history.push({ object: state.current, box, before: object.box || null });
+    object.box = box;
+  }
+  state.future = [];
+  state.clickPending = true; // taken back if nothing is found in it
+  changed();
 }
+onChoose(chooseDetection);
 
 function clicksKey() {
   return JSON.stringify(clickedObjects());
 }
 
-// Undo and Redo: each step is a click ({object, sign}), a box ({object, box, before})
-// or a Reset ({reset: the clicks it cleared, current}); a new step forgets what could be redone.
+// Undo and Redo: each step is a click ({object, sign}), a box ({object, box, before}), an
+// animal chosen over clicks ({object, choose: its box, before: the object's clicks}) or a
+// Reset ({reset: the clicks it cleared, current}); a new step forgets what could be redone.
 function undo() {
   const last = state.history.pop();
   if (!last) return;
@@ -326,6 +364,10 @@ function stepBack(last) {
   if (last.reset) { // the clicks a Reset cleared come back
     state.objects = JSON.parse(last.reset);
     state.current = last.current;
+    return last;
+  }
+  if (last.choose) { // the object's clicks come back
+    state.objects[last.object] = JSON.parse(last.before);
     return last;
   }
   const object = state.objects[last.object];
@@ -348,7 +390,10 @@ function redo() {
   } else {
     while (state.objects.length <= next.object) state.objects.push(emptyObject());
     const object = state.objects[next.object];
-    if ("box" in next) {
+    if (next.choose) {
+      state.objects[next.object] = { positive: [], negative: [], box: next.choose.slice() };
+      state.history.push(next);
+    } else if ("box" in next) {
       object.box = next.box;
       state.history.push(next);
     } else {

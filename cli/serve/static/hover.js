@@ -2,6 +2,7 @@
 // what a first click there would take. The server sends the photo's first-click map once
 // (superpixel labels, the region each superpixel's click takes, each region's
 // superpixels); every pointer move is a lookup and a cached picture, no request.
+import { foundAt, showFoundAt } from "./found.js";
 import { $, state } from "./state.js";
 
 let map = null; // the shown photo's map, once it is in
@@ -72,7 +73,7 @@ function previewing() {
 }
 
 function hoverMove(event) {
-  if (event.pointerType === "touch" || event.buttons !== 0 || !previewing()) {
+  if (event.pointerType === "touch" || event.buttons !== 0 || !state.result) {
     clearHover();
     return;
   }
@@ -85,10 +86,14 @@ function hoverMove(event) {
 // The preview at a point given as shares of the photo's width and height (the pointer's,
 // or the keyboard's cursor).
 function hoverAt(fx, fy) {
-  if (!previewing()) {
+  // Over a detected animal's box that a click would dress: that box is lit, not a region.
+  const found = state.result ? foundAt([fx * state.width, fy * state.height]) : null;
+  if (found !== null || !previewing()) {
     clearHover();
+    showFoundAt(found);
     return;
   }
+  showFoundAt(null);
   const x = Math.min(map.width - 1, Math.max(0, Math.floor(fx * map.width)));
   const y = Math.min(map.height - 1, Math.max(0, Math.floor(fy * map.height)));
   const region = map.choice[map.labels[y * map.width + x]];
@@ -96,6 +101,7 @@ function hoverAt(fx, fy) {
 }
 
 function clearHover() {
+  showFoundAt(null);
   if (shown === -1) return;
   shown = -1;
   const canvas = $("hover");

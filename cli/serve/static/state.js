@@ -42,4 +42,11 @@ function showError(text) {
   $("error").hidden = !text;
 }
 
-export { $, SVG_NS, setStatus, showError, state };
+// The clicks to send: the objects that have a click or a box (negative clicks alone are
+// an object too: the automatic subject minus them).
+function clickedObjects() {
+  return state.objects.filter((o) => o.positive.length > 0 || o.negative.length > 0 || o.box)
+    .map((o) => (o.box ? { positive: o.positive, negative: o.negative, box: o.box } : { positive: o.positive, negative: o.negative }));
+}
+
+export { $, SVG_NS, clickedObjects, setStatus, showError, state };
