@@ -260,6 +260,22 @@ def test_the_answer_names_the_detected_animals_and_a_box_of_one_dresses_it(clien
     assert [d["dressed"] for d in drawn.json()["detections"]] == [True, False]
 
 
+def test_name_it_names_the_dressed_animal_where_the_detector_is_sure(client, tmp_path):
+    """The answer's caption is --top auto's: the class of what wears the jeans, also of an
+    animal chosen on the page; what no sure detection wears is "this"."""
+    cats = upload(client, "cats.png", png_bytes(two_cats())).json()
+    assert cats["caption"] == ["how would a cat", "wear jeans?"]  # cat 0.60, no other class on its box
+    other = next(d for d in cats["detections"] if not d["dressed"])  # cat 0.51
+    chosen = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"box": other["box"]}]})
+    assert chosen.status_code == 200, chosen.text
+    assert chosen.json()["caption"] == ["how would a cat", "wear jeans?"]
+    # A click that takes a part of a cat's face dresses no detected animal: "this".
+    part = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"positive": [[750, 150]]}]})
+    assert part.json()["caption"] == ["how would this", "wear jeans?"]
+    drawing = upload(client, "person.png", write_silhouette_png(tmp_path / "person.png").read_bytes()).json()
+    assert drawing["caption"] == ["how would this", "wear jeans?"]
+
+
 def test_detections_are_in_the_photos_pixels_as_displayed():
     """Boxes go to the page in pixels of the photo as displayed, also where it was
     decoded at another size (a RAW file at half size): scaled from the decoded copy."""

@@ -1186,6 +1186,9 @@ def test_a_tap_on_a_detected_box_dresses_that_animal(server, browser, phone):
         assert [f["text"] for f in found] == ["cat 0.60", "cat 0.51"], found
         assert [f["dressed"] for f in found] == [True, False]  # the most prominent: the right one
         assert "found a cat (0.60)" in page.inner_text("#status")
+        page.click("#name-it")  # the meme that names it (--top auto's)
+        assert (page.input_value("#top"), page.input_value("#bottom")) == ("how would a cat", "wear jeans?")
+        page.evaluate("() => window.scrollTo(0, 0)")  # on the phone the button lies below the photo
         assert page.locator("#found .found-box").count() == 2
         assert page.locator("#found .found-box.dressed").count() == 1
         left = page.evaluate(

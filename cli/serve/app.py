@@ -221,6 +221,7 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
         result = Result(photo_id, clicks, render_options, preview)
         result_id = self.state.results.put(result, _result_bytes(result))
         self.state.photos.resize(photo_id, photo.nbytes)
+        detections = found.page_detections(photo, clicks, objects)
         return {
             "result": result_id,
             "preview": f"/api/results/{result_id}/preview",
@@ -229,7 +230,9 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
             "objects": engine.page_objects(photo, objects),
             "summary": engine.report_summary(photo, objects),
             # The detected animals the page offers, and which one wears the jeans.
-            "detections": found.page_detections(photo, clicks, objects),
+            "detections": detections,
+            # "Name it": the meme that names what wears the jeans (--top auto's).
+            "caption": found.caption(photo, detections),
             "clicks": clicks is not None,
             "downloads": {kind: f"/api/results/{result_id}/{kind}" for kind in DOWNLOADS},
         }

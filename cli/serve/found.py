@@ -94,3 +94,13 @@ def page_detections(photo, clicks: Clicks | None, objects: list) -> list[dict]:
         if best is not None:
             best["dressed"] = True
     return entries
+
+
+def caption(photo, entries: list[dict]) -> list[str]:
+    """``--top auto``'s meme for a result: ``["how would a cat", "wear jeans?"]`` when a
+    detected animal wears the jeans and the detector is sure of its class (judged among
+    every detection of ``photo``), else ``["how would this", "wear jeans?"]``."""
+    from jeanscv.subject.detected import captions
+
+    dressed = next((entry for entry in entries if entry["dressed"]), None)
+    return list(captions({"detection": dressed, "detections": photo.detections} if dressed else {}))

@@ -105,6 +105,13 @@ function wire() {
   $("save").addEventListener("click", saveToFolder);
   for (const id of ["style", "garment", "posture"]) $(id).addEventListener("change", rerender);
   for (const id of ["top", "bottom", "side"]) $(id).addEventListener("input", updateCaptions);
+  $("name-it").addEventListener("click", () => {
+    // The meme that names what wears the jeans, where the detector is sure of its class.
+    const [top, bottom] = (state.result && state.result.caption) || ["how would this", "wear jeans?"];
+    $("top").value = top;
+    $("bottom").value = bottom;
+    updateCaptions();
+  });
   $("result").addEventListener("load", updateCaptions);
   $("another").addEventListener("click", () => {
     leavePhoto();
