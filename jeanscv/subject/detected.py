@@ -2,8 +2,10 @@
 object is the subject, its mask, and how sure that is.
 
 The detector says where the animal is; the cut inside its box stays classical (the box
-engine a person's box uses, :func:`.boxed.segment_box`). Where it finds nothing of what
-is asked for, automatic finding is the classical one, unchanged (:mod:`.photo`).
+engine a person's box uses, then what the animal stands or lies on dropped from the
+bottom of its box: :func:`.boxed.segment_box` with ``drop_support``). Where it finds
+nothing of what is asked for, automatic finding is the classical one, unchanged
+(:mod:`.photo`).
 
 Which object: among the detections of the wanted kind (``auto`` and ``animal``: every
 animal class as one, since a running dog is called a cat or a horse from frame to frame
@@ -113,8 +115,8 @@ def find(pixels: np.ndarray, detector: str) -> tuple[list[Detection], str | None
 
 
 def detected_segmentations(pixels: np.ndarray, chosen: list[Detection], working_size: int) -> list:
-    """The cut inside each chosen box (:func:`.boxed.segment_box`), None where it holds
-    no object (fewer than 0.5% of the photo's pixels)."""
+    """The cut inside each chosen box (:func:`.boxed.segment_box`, what the animal stands
+    on dropped), None where it holds no object (fewer than 0.5% of the photo's pixels)."""
     from .boxed import segment_box
     from .masks import MIN_AREA_FRACTION
 
@@ -122,7 +124,7 @@ def detected_segmentations(pixels: np.ndarray, chosen: list[Detection], working_
     found = []
     for detection in chosen:
         try:
-            segmentation = segment_box(rgb, detection.box, working_size)
+            segmentation = segment_box(rgb, detection.box, working_size, drop_support=True)
         except JeansError:
             segmentation = None
         if segmentation is not None and segmentation.mask.mean() < MIN_AREA_FRACTION:
