@@ -19,6 +19,9 @@ from jeanscv import __version__
 from jeanscv.device import BACKENDS, DEVICES
 from jeanscv.options import DETECTORS, KINDS, OBJECTS, POSTURES, STYLES, SUBJECTS, JeansOptions
 
+from . import params
+from .sections import SectionedCommand
+
 #: The library's defaults, which the command's options show and use (``--device`` is ``auto`` here).
 DEFAULTS = JeansOptions()
 
@@ -27,6 +30,7 @@ Examples:
   jeanscv dog.svg                       dog.jeans.png (the paper's figure)
   jeanscv cat.jpg --style flat          cat.jeans.jpg, jeans in the paper's blue
   jeanscv photos/ -r -o out/ -j 2       every image below photos/, mirrored under out/
+  jeanscv photos/ -r -o out/ --dask tcp://HOST:8786   the same on a Dask cluster's workers
   jeanscv 'shots/*.NEF' --format webp   RAW files, globs expanded by jeanscv itself
   jeanscv cat.jpg --top "how would" --bottom "a cat wear jeans" --side-by-side
   jeanscv horse.png --json --svg --gif  sidecars: report, vector overlay, animation
@@ -51,95 +55,8 @@ Exit status: 0 all done, 1 some input failed, 2 usage error, 130/143 interrupted
 """
 
 
-def _parse_rect(ctx: click.Context, param: click.Parameter, value: str | None):
-    if value is None:
-        return None
-    try:
-        x, y, w, h = (int(v) for v in value.split(","))
-    except ValueError:
-        raise click.BadParameter("expected four integers X,Y,W,H, e.g. 10,20,300,200") from None
-    if w <= 0 or h <= 0:
-        raise click.BadParameter("width and height must be positive")
-    return x, y, w, h
-
-
-def _parse_points(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]):
-    points = []
-    for value in values:
-        try:
-            x, y = (float(v) for v in value.split(","))
-        except ValueError:
-            raise click.BadParameter(f"expected two numbers X,Y (image pixels), e.g. 420,310; got {value!r}") from None
-        if not (abs(x) < float("inf") and abs(y) < float("inf")):
-            raise click.BadParameter(f"expected finite numbers X,Y, got {value!r}")
-        points.append((x, y))
-    return tuple(points)
-
-
-def _parse_box(ctx: click.Context, param: click.Parameter, value: str | None):
-    if value is None:
-        return None
-    try:
-        x0, y0, x1, y1 = (float(v) for v in value.split(","))
-    except ValueError:
-        raise click.BadParameter(
-            f"expected four numbers X0,Y0,X1,Y1 (image pixels), e.g. 100,50,620,480; got {value!r}"
-        ) from None
-    if not all(abs(v) < float("inf") for v in (x0, y0, x1, y1)):
-        raise click.BadParameter(f"expected finite numbers, got {value!r}")
-    if x1 - x0 < 2 or y1 - y0 < 2:
-        raise click.BadParameter("the box needs X0 < X1 and Y0 < Y1, at least 2 pixels apart")
-    return x0, y0, x1, y1
-
-
-def _list_presets(ctx: click.Context, param: click.Parameter, value: bool) -> None:
-    if not value or ctx.resilient_parsing:
-        return
-    from jeanscv.fitting.presets import DEFAULT_PRESET, PRESETS
-
-    for name, preset in PRESETS.items():
-        mark = " (default)" if name == DEFAULT_PRESET else ""
-        click.echo(f"{name}{mark}: {preset.description}")
-    ctx.exit(0)
-
-
-def _clear_cache(ctx: click.Context, param: click.Parameter, value: bool) -> None:
-    if not value or ctx.resilient_parsing:
-        return
-    from jeanscv.fitting._fast.cache import clear_kernel_cache
-
-    try:
-        folder, files, size = clear_kernel_cache()
-    except OSError as exc:
-        click.echo(f"jeanscv: cannot remove the compiled kernels: {exc.strerror or exc}", err=True)
-        ctx.exit(1)
-    if files:
-        click.echo(f"removed the compiled fit kernels: {files} files, {size / 1e6:.1f} MB, from {folder}")
-    else:
-        click.echo(f"no compiled fit kernels to remove ({folder})")
-    ctx.exit(0)
-
-
-def _check_silhouette(ctx: click.Context, param: click.Parameter, value: str) -> str:
-    from jeanscv.plugins import available_silhouette_methods
-
-    known = available_silhouette_methods()
-    if value not in known:
-        raise click.BadParameter(f"{value!r} is not one of {', '.join(sorted(known))}")
-    return value
-
-
-def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> None:
-    if not value or ctx.resilient_parsing:
-        return
-    from jeanscv.plugins import available_garments
-
-    for name, garment in available_garments().items():
-        click.echo(f"{name}: {garment.description}")
-    ctx.exit(0)
-
-
 @click.command(
+    cls=SectionedCommand,
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
     epilog=EPILOG,
 )
@@ -208,12 +125,19 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     "silhouette_method",
     default=DEFAULTS.silhouette_method,
     show_default=True,
-    callback=_check_silhouette,
+    callback=params.check_silhouette,
     help="How to cut the object out of a photo: auto, alpha, threshold, grabcut, or a plugin's name.",
 )
 @click.option("--threshold", type=click.FloatRange(0, 255), help="Grey level for --silhouette threshold.")
 @click.option("--mask", type=click.Path(exists=True, dir_okay=False), help="Mask image for a single input.")
-@click.option("--rect", callback=_parse_rect, metavar="X,Y,W,H", help="Box around the object, for GrabCut.")
+@click.option(
+    "--rect",
+    "rect_box",
+    callback=params.rect_as_box,
+    metavar="X,Y,W,H",
+    hidden=True,
+    help="The old name of --box, as X,Y,W,H.",
+)
 @click.option(
     "--objects",
     type=click.Choice(OBJECTS),
@@ -241,7 +165,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     "--point",
     "points",
     multiple=True,
-    callback=_parse_points,
+    callback=params.parse_points,
     metavar="X,Y",
     help="A click on the object that should wear the jeans (pixels of the photo; repeatable: "
     "more clicks refine the same object; one input).",
@@ -250,7 +174,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     "--background-point",
     "background_points",
     multiple=True,
-    callback=_parse_points,
+    callback=params.parse_points,
     metavar="X,Y",
     help="A click on something that is not that object (repeatable; alone: the automatic subject "
     "minus what it takes away; one input).",
@@ -258,7 +182,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
 @click.option(
     "--box",
     "box",
-    callback=_parse_box,
+    callback=params.parse_box,
     metavar="X0,Y0,X1,Y1",
     help="A box around the object that should wear the jeans (pixels of the photo; alone or with "
     "--point and --background-point; one input).",
@@ -323,6 +247,13 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     type=click.IntRange(1),
     help="Worker processes for many inputs (default: one per core, as memory allows).",
 )
+@click.option(
+    "--dask",
+    metavar="ADDRESS",
+    help="Run the batch on the Dask cluster whose scheduler is at ADDRESS (tcp://HOST:8786) "
+    "instead of local workers; inputs and outputs must be on a file system the workers share "
+    "(needs jeanscv[dask]).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
 @click.option("-v", "--verbose", is_flag=True, help="Print the silhouette method, device and losses per file.")
 @click.option(
@@ -330,7 +261,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     is_flag=True,
     expose_value=False,
     is_eager=True,
-    callback=_list_presets,
+    callback=params.list_presets,
     help="List the presets and exit.",
 )
 @click.option(
@@ -338,7 +269,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     is_flag=True,
     expose_value=False,
     is_eager=True,
-    callback=_list_garments,
+    callback=params.list_garments,
     help="List the garments and exit.",
 )
 @click.option(
@@ -346,7 +277,7 @@ def _list_garments(ctx: click.Context, param: click.Parameter, value: bool) -> N
     is_flag=True,
     expose_value=False,
     is_eager=True,
-    callback=_clear_cache,
+    callback=params.clear_cache,
     help="Remove the compiled fit kernels (every version's) from the per-user cache and exit.",
 )
 @click.version_option(__version__, "--version", prog_name="jeanscv", message="%(prog)s %(version)s")
@@ -389,14 +320,23 @@ def _main(
     device,
     backend,
     jobs,
+    dask,
     quiet,
     verbose,
+    rect_box,
     **values,
 ) -> int:
     """The command; ``values`` are the per-input options (:class:`JeansOptions`' names)."""
     if not paths:
         raise _usage("no PATH given: name files, folders or patterns (see --help)")
-    _start_workers_early(list(paths), jobs)
+    if rect_box is not None:
+        if values["box"] is not None:
+            raise _usage("--rect is the old name of --box: give --box alone")
+        values["box"] = rect_box
+    if dask is not None and jobs is not None:
+        raise _usage("-j sets local worker processes; with --dask the cluster's workers do the work")
+    if dask is None:
+        _start_workers_early(list(paths), jobs)
     from jeanscv.device import resolve_backend, resolve_device
     from jeanscv.errors import JeansError
     from jeanscv.fitting._fast import kernel_cache_dir, kernels_cached
@@ -429,24 +369,43 @@ def _main(
     if values["clicks"] is not None and not single:
         raise _usage("--clicks needs exactly one input image (its pixels are that image's)")
     options = JeansOptions(**values, device=device, backend=backend)
+    cluster = None
+    if dask is not None:
+        from jeanscv.run.distributed import connect
 
-    progress = Progress(found.total, quiet=quiet, verbose=verbose)
-    progress.serve_hint = _serve_hint(paths)
-    noun = "input" if found.total == 1 else "inputs"
-    workers, why = _workers(jobs, found.total)
-    progress.info(
-        f"jeanscv {__version__}: {found.total} {noun}, {workers} worker{'s' if workers > 1 else ''} "
-        f"({why}), device {device} ({backend}), preset {options.preset}, {options.iterations} iterations"
-    )
-    if backend == "fast" and kernels_cached() is False:
+        try:
+            cluster = connect(dask)
+        except JeansError as exc:
+            click.echo(f"jeanscv: {one_line(exc)}", err=True)
+            return 2
+    try:
+        progress = Progress(found.total, quiet=quiet, verbose=verbose)
+        progress.serve_hint = _serve_hint(paths)
+        noun = "input" if found.total == 1 else "inputs"
+        if cluster is not None:
+            from .cluster import describe
+
+            workers, where = 0, describe(cluster, dask)
+        else:
+            workers, why = _workers(jobs, found.total)
+            where = f"{workers} worker{'s' if workers > 1 else ''} ({why})"
         progress.info(
-            "compiling the fit kernels for this installation, once (about 25 s on two free cores); later runs load them"
+            f"jeanscv {__version__}: {found.total} {noun}, {where}, device {device} ({backend}), "
+            f"preset {options.preset}, {options.iterations} iterations"
         )
-        progress.info(f"(kept in {kernel_cache_dir()}; 'jeanscv --clear-cache' removes them)")
-    records = _unprocessed(found, progress)
-    outcomes: dict = {}
-    pending = _pending(found.jobs, options, overwrite, progress, outcomes)
-    return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report)
+        if cluster is None and backend == "fast" and kernels_cached() is False:
+            progress.info(
+                "compiling the fit kernels for this installation, once (about 25 s on two free cores); "
+                "later runs load them"
+            )
+            progress.info(f"(kept in {kernel_cache_dir()}; 'jeanscv --clear-cache' removes them)")
+        records = _unprocessed(found, progress)
+        outcomes: dict = {}
+        pending = _pending(found.jobs, options, overwrite, progress, outcomes)
+        return _run_jobs(pending, options, overwrite, workers, progress, outcomes, records, report, cluster)
+    finally:
+        if cluster is not None:
+            cluster.close()
 
 
 def _start_workers_early(paths: list[str], jobs: int | None) -> None:
@@ -532,9 +491,11 @@ def _pending(jobs, options, overwrite: bool, progress, outcomes: dict):
         progress.finish(outcome)
 
 
-def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcomes, records, report) -> int:
-    """Process ``pending`` (in ``workers`` processes when several jobs are pending),
-    summarise, write the ``--report``; the exit status."""
+def _run_jobs(
+    pending, options, overwrite: bool, workers: int, progress, outcomes, records, report, cluster=None
+) -> int:
+    """Process ``pending`` (on the Dask ``cluster``'s client, else in ``workers`` processes
+    when several jobs are pending), summarise, write the ``--report``; the exit status."""
     from .pool import run_parallel
     from .runs import WorkQueue, remove_leftovers
 
@@ -545,8 +506,12 @@ def _run_jobs(pending, options, overwrite: bool, workers: int, progress, outcome
     try:
         queue = WorkQueue(pending, progress, outcomes)
         # Only as many workers as there are files to do: a resumed run with one left runs it here.
-        ahead = queue.look_ahead(workers)
-        if workers > 1 and ahead > 1:
+        ahead = 0 if cluster is not None else queue.look_ahead(workers)
+        if cluster is not None:
+            from .cluster import run_on_cluster
+
+            run_on_cluster(queue, options, overwrite, cluster)
+        elif workers > 1 and ahead > 1:
             run_parallel(queue, options, overwrite, ahead)
         else:
             _run_serial(queue, options, overwrite)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -259,6 +260,55 @@ def test_usage_errors_exit_2(tmp_path, run_cli):
         assert result.exit_code == 2, (args, result.stderr)
         assert "Traceback" not in result.stderr and "Error:" in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png"]
+
+
+def test_rect_is_the_old_name_of_box(tmp_path, run_cli, monkeypatch):
+    """``--rect X,Y,W,H`` is ``--box X,Y,X+W,Y+H`` with one line saying so; hidden from
+    --help; like --box it needs exactly one input. The library's GrabCut ``rect`` stays."""
+    import jeanscv_cli.main as cli_main
+    from jeanscv.options import JeansOptions
+
+    src = write_silhouette_png(tmp_path / "a.png")
+    other = write_silhouette_png(tmp_path / "b.png")
+    seen = []
+    monkeypatch.setattr(cli_main, "_run_jobs", lambda pending, options, *rest: seen.append(options) or 0)
+    result = run_cli(src, "--rect", "10,20,100,200")
+    assert result.exit_code == 0, result.stderr
+    assert (
+        result.stderr.splitlines()[0] == "jeanscv: --rect X,Y,W,H is now --box X0,Y0,X1,Y1 (here --box 10,20,110,220)"
+    )
+    assert result.stderr.count("--rect") == 1
+    assert seen[0].box == (10.0, 20.0, 110.0, 220.0) and seen[0].rect is None
+    for args, message in (
+        ((src, other, "--rect", "10,20,100,200"), "--box needs exactly one input image"),
+        ((src, "--rect", "10,20,100,200", "--box", "1,2,30,40"), "--rect is the old name of --box"),
+        ((src, "--rect", "10,20,1,200"), "at least 2 pixels apart"),
+    ):
+        result = run_cli(*args)
+        assert result.exit_code == 2 and message in result.stderr, (args, result.stderr)
+    assert "--rect" not in run_cli("--help").stdout
+    assert JeansOptions(rect=(1, 2, 30, 40)).rect == (1, 2, 30, 40)  # API users keep GrabCut's box
+
+
+def test_help_lists_every_option_in_one_section(run_cli):
+    import click
+
+    from jeanscv_cli.main import cli
+    from jeanscv_cli.sections import SECTIONS, option_name
+
+    ctx = click.Context(cli)
+    shown = [option_name(p) for p in cli.get_params(ctx) if isinstance(p, click.Option) and not p.hidden]
+    listed = [name for names in SECTIONS.values() for name in names]
+    assert sorted(listed) == sorted(set(listed)), "an option is in two sections"
+    assert sorted(listed) == sorted(shown)
+    text = run_cli("--help").stdout
+    titles = [line[:-1] for line in text.splitlines() if line.endswith(":") and not line.startswith(" ")]
+    assert titles == list(SECTIONS)  # no "Options:" section of left-overs
+    assert text.index("Inputs and outputs:") < text.index("  -o, --output-dir") < text.index("What to dress:")
+    assert text.index("Limits and speed:") < text.index("  --dask ADDRESS") < text.index("Information:")
+    # One column for the help texts of every section.
+    rows = [re.match(r"  -\S.*?\s{2,}(\S)", line) for line in text.split("Examples:")[0].splitlines()]
+    assert len([row for row in rows if row]) > 30 and len({row.start(1) for row in rows if row}) == 1
 
 
 def test_device_cuda_without_gpu_is_a_usage_error(tmp_path, run_cli):

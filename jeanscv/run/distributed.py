@@ -1,30 +1,37 @@
 """Run :func:`jeanscv.pipeline.apply_jeans` over many files on a Dask cluster.
 
 Needs the optional dependency ``dask[distributed]`` (``pip install jeanscv[dask]``),
-imported only when :func:`run_on_dask` is called. Each input is one task; the task
-decodes, fits and composites on a worker and writes the picture and its JSON report
-itself (atomically), so the inputs and ``output_dir`` must be on a file system the
-workers share with the driver. Only small records travel back to the driver, which
-writes the JSONL report. One input failing (bad file, diverged fit, a worker dying)
-never stops the others.
+imported only when it is used. Each input is one task; the task decodes, fits and
+composites on a worker and writes its outputs itself (atomically), so the inputs and
+the outputs must be on a file system the workers share with the driver. Only small
+records travel back to the driver, which writes the JSONL report. One input failing
+(bad file, diverged fit, a worker dying) never stops the others.
+
+:func:`run_on_dask` is the API's runner. Its parts serve the command's ``--dask`` too
+(``jeanscv_cli.cluster``), which runs its own per-input work on the workers:
+:func:`connect` (a scheduler's address to a client, or one clear error),
+:func:`for_workers` (options the workers can use as they are) and :func:`run_tasks`
+(tasks kept flowing to the cluster, each finished or lost one reported as it ends).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import queue
+import socket
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from ..errors import JeansError
 from ..options import JeansOptions
-from .runner import encode_picture, failure_reason, report_text
+from .runner import encode_picture, failure_reason, one_line, report_text
 
-#: Extensions that keep their format in the output; everything else gets ``.png``,
-#: except RAW files, whose developed photo is written as ``.jpg`` (the CLI's rule).
+#: Seconds to wait for a scheduler named by its address before giving up on it.
+CONNECT_TIMEOUT = 10.0
 
 
 def _dask_distributed():
@@ -111,24 +118,72 @@ def process_one(source: str, picture: str, report: str, options: JeansOptions, o
     return record
 
 
-def _checked_options(apply_options: dict[str, Any]) -> JeansOptions:
-    """``apply_jeans``'s options by name, checked, with the garment resolved here on the
-    driver (a ``.toml`` or plugin garment need not exist on the workers)."""
+def for_workers(options: JeansOptions) -> JeansOptions:
+    """``options`` with the garment resolved here on the driver: a ``.toml`` or plugin
+    garment need not exist on the workers."""
     from ..plugins import get_garment
 
+    return options.replace(garment=get_garment(options.garment))
+
+
+def _checked_options(apply_options: dict[str, Any]) -> JeansOptions:
+    """``apply_jeans``'s options by name, checked, made ready for the workers."""
     unknown = [name for name in apply_options if name not in JeansOptions.names()]
     if unknown:
         raise JeansError(f"bad apply_jeans option: got an unexpected keyword argument {unknown[0]!r}")
-    options = JeansOptions(**apply_options)
-    return options.replace(garment=get_garment(options.garment))
+    return for_workers(JeansOptions(**apply_options))
+
+
+def _probe(distributed: Any, address: str, timeout: float) -> None:
+    """Raise JeansError unless a TCP connection to the scheduler's ``address`` opens
+    within ``timeout`` seconds (transports that are not TCP are left to the client).
+
+    A client that cannot connect raises only after its whole timeout, even where the
+    port refuses at once, and the half-made client then prints a traceback as the
+    interpreter exits; the probe says why at once, and no client is made."""
+    try:
+        scheme, location = distributed.comm.parse_address(address)
+        if scheme not in ("tcp", "tls", "ws", "wss"):
+            return
+        host, port = distributed.comm.addressing.parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise JeansError(f"not a Dask scheduler address: {address!r} ({one_line(exc)})") from None
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except TimeoutError:
+        raise JeansError(f"cannot reach the Dask scheduler at {address}: no answer within {timeout:g} s") from None
+    except OSError as exc:
+        reason = (exc.strerror or str(exc)).lower()
+        raise JeansError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+
+
+def connect(address: str, timeout: float | None = None) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``address`` (``tcp://HOST:8786``),
+    not made the default client; the caller closes it.
+
+    Raises JeansError, one line naming ``address``, where ``dask[distributed]`` is not
+    installed, the address is not one, or the scheduler cannot be reached within
+    ``timeout`` seconds (default :data:`CONNECT_TIMEOUT`).
+    """
+    distributed = _dask_distributed()
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
+    _probe(distributed, address, timeout)
+    try:
+        return distributed.Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise JeansError(f"cannot reach the Dask scheduler at {address}: {one_line(exc)}") from None
+    except (ValueError, TypeError) as exc:
+        raise JeansError(f"not a Dask scheduler address: {address!r} ({one_line(exc)})") from None
 
 
 @contextmanager
 def _dask_client(distributed: Any, client: Any) -> Iterator[Any]:
-    """``client``, else the current client, else a local cluster started for this call
-    and closed when it ends."""
+    """``client`` (a scheduler's address is connected to), else the current client, else a
+    local cluster started for this call; what this call made is closed when it ends."""
     own_client = None
-    if client is None:
+    if isinstance(client, str):
+        own_client = client = connect(client)
+    elif client is None:
         try:
             client = distributed.get_client()
         except ValueError:
@@ -142,33 +197,77 @@ def _dask_client(distributed: Any, client: Any) -> Iterator[Any]:
                 own_client.cluster.close()
 
 
+def run_tasks(
+    client: Any,
+    task: Callable,
+    next_item: Callable[[], tuple[Any, tuple] | None],
+    ahead: int | None = None,
+    finished: queue.SimpleQueue | None = None,
+    take: Callable[[], Any] | None = None,
+    **kwargs: Any,
+) -> Iterator[tuple[Any, Any, str]]:
+    """Run ``task(*args, **kwargs)`` on ``client``'s cluster for each ``(item, args)`` that
+    ``next_item()`` gives, and yield ``(item, result, "")`` as each task finishes, or
+    ``(item, None, reason)`` where it was lost (its worker died more often than the
+    scheduler retries a task, say) or raised.
+
+    ``next_item()`` returning None means nothing more for now: it is asked again as
+    tasks finish, and the iteration ends when it gives nothing and no task is left. At
+    most ``ahead`` tasks (default: twice the cluster's threads) are out at once, so items
+    are made as they are needed and a big batch is not all queued up front. Finished
+    tasks' futures are put in ``finished`` (default: a new queue) from the client's
+    thread and taken by ``take()`` (default: its ``get``); the command passes its own,
+    which acts on the signals it notes in that queue. When the caller stops early (an
+    interrupt), the tasks not yet finished are cancelled: those still queued never
+    start, running ones end on their worker.
+    """
+    if ahead is None:
+        ahead = max(2, 2 * sum(client.nthreads().values()))
+    finished = queue.SimpleQueue() if finished is None else finished
+    take = finished.get if take is None else take
+    running: dict[Any, Any] = {}  # future -> item
+    try:
+        while True:
+            while len(running) < ahead and (made := next_item()) is not None:
+                item, args = made
+                future = client.submit(task, *args, pure=False, **kwargs)
+                running[future] = item
+                future.add_done_callback(finished.put)
+            if not running:
+                return
+            future = take()
+            if future not in running:
+                continue  # a future of an earlier run on the same queue
+            item = running.pop(future)
+            try:
+                result, reason = future.result(), ""
+            except Exception as exc:  # noqa: BLE001 - a lost task fails only its own item
+                result, reason = None, f"the task failed on the cluster: {failure_reason(exc)}"
+            yield item, result, reason
+    finally:
+        if running:
+            client.cancel(list(running))
+
+
 def _run_jobs(client: Any, jobs: list[tuple[Path, Path, Path]], options: JeansOptions, overwrite: bool) -> list[dict]:
     """One :func:`process_one` task per job on ``client``; the records in job order, a
     task lost on the cluster (a worker dying) failing only its own input."""
-    futures = client.map(
-        process_one,
-        [str(p) for p, _, _ in jobs],
-        [str(pic) for _, pic, _ in jobs],
-        [str(rep) for _, _, rep in jobs],
-        options=options,
-        overwrite=overwrite,
-        pure=False,
-    )
-    records = []
-    for (path, _, _), future in zip(jobs, futures):
-        try:
-            record = future.result()
-        except Exception as exc:  # noqa: BLE001 - a lost worker fails only its inputs
+    items = ((index, tuple(map(str, job))) for index, job in enumerate(jobs))
+    records: dict[int, dict] = {}
+    for index, record, reason in run_tasks(
+        client, process_one, lambda: next(items, None), options=options, overwrite=overwrite
+    ):
+        if reason:
             record = {
                 "status": "failed",
-                "input": str(path),
+                "input": str(jobs[index][0]),
                 "output": "",
                 "report": "",
-                "error": f"the task failed on the cluster: {failure_reason(exc)}",
+                "error": reason,
                 "seconds": 0.0,
             }
-        records.append(record)
-    return records
+        records[index] = record
+    return [records[index] for index in sorted(records)]
 
 
 def run_on_dask(
@@ -184,8 +283,9 @@ def run_on_dask(
     Args:
         paths: input files (photos, RAW, silhouette PNGs, SVGs) the workers can read.
         output_dir: where ``<stem>.jeans.<ext>`` and ``<stem>.jeans.json`` go (created).
-        client: a ``distributed.Client``; None uses the current one, or starts a local
-            cluster for this call and closes it afterwards.
+        client: a ``distributed.Client``, or a scheduler's address (``tcp://HOST:8786``,
+            connected to for this call, see :func:`connect`); None uses the current
+            client, or starts a local cluster for this call and closes it afterwards.
         report: optional path of the JSONL report (one record per line, input order).
         overwrite: False skips inputs whose two outputs exist (a resumed run).
         apply_options: the options of :func:`jeanscv.pipeline.apply_jeans`, by name
@@ -214,4 +314,4 @@ def run_on_dask(
     return records
 
 
-__all__ = ["output_paths", "process_one", "run_on_dask"]
+__all__ = ["CONNECT_TIMEOUT", "connect", "for_workers", "output_paths", "process_one", "run_on_dask", "run_tasks"]
