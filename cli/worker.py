@@ -118,19 +118,24 @@ def _ensure_folder(folder: Path) -> None:
 AUTO_CAPTION = "auto"
 
 
+def _captions(options: JeansOptions, details: dict) -> tuple[str | None, str | None]:
+    """The top and bottom captions of ``options``; ``--top auto``'s from what the detector
+    said the subject is (a silhouette's ``details``), the bottom one unless given."""
+    if options.top != AUTO_CAPTION:
+        return options.top, options.bottom
+    from jeanscv.subject.detected import captions
+
+    top, bottom = captions(details)
+    return top, options.bottom or bottom
+
+
 def picture(result, options: JeansOptions):
     """The main output picture: the fit, captioned, optionally beside the original."""
     if not (options.top or options.bottom or options.side_by_side):
         return result.image  # no drawing: its imports (fonts, SVG escaping) are not free
     from .extras import add_captions, side_by_side
 
-    top, bottom = options.top, options.bottom
-    if top == AUTO_CAPTION:  # from what the detector says the subject is
-        from jeanscv.subject.detected import captions
-
-        top, automatic_bottom = captions(result.silhouette.details)
-        bottom = bottom or automatic_bottom
-    image = add_captions(result.image, top, bottom)
+    image = add_captions(result.image, *_captions(options, result.silhouette.details))
     if options.side_by_side:
         if result.kind == "silhouette":
             from jeanscv.paint.figures import figure
@@ -260,9 +265,7 @@ def clip_decorate(options):
     from .extras import add_captions, side_by_side
 
     # A clip's subject is found classically (no detector's class): "how would this".
-    top, bottom = options.top, options.bottom
-    if top == AUTO_CAPTION:
-        top, bottom = "how would this", bottom or "wear jeans?"
+    top, bottom = _captions(options, {})
 
     def decorate(painted, original):
         captioned = add_captions(painted, top, bottom)
