@@ -248,8 +248,11 @@ def _run_clip(job: Job, options: JeansOptions, targets: dict[str, Path], outcome
         "frames_without_jeans": sum(all(obj is None for obj in frame["objects"]) for frame in frames),
         "objects": [],
     }
-    if "stopped" in report:
-        outcome.info["note"] = f"{report['stopped']}; the frames before it were written"
+    if "stopped" in report:  # frames lost to a truncated or damaged file: said, though the clip is written
+        from jeanscv.io.clip import ClipStop
+
+        written = report["frames_written"]
+        outcome.info["note"] = f"{ClipStop(**report['stopped'])}; the {written} frames decoded were written"
     if "json" in targets:
         text = json.dumps({"input": job.display, "output": str(image), **report}, sort_keys=True) + "\n"
         _ensure_folder(targets["json"].parent)

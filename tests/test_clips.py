@@ -239,6 +239,125 @@ def test_a_truncated_clip_keeps_what_decoded(tmp_path):
         frames = list(reader.frames())
     assert 2 <= len(frames) < 12
     assert np.abs(frames[1].pixels.astype(int) - pixels[1]).mean() < 12  # H.264's loss on gravel
+    # Matroska counts no frames: where the decoded ones end against the track's 1.2 s.
+    end = round(len(frames) / 10, 2)
+    assert reader.stopped.to_json() == {"after": len(frames), "at_seconds": end, "of_seconds": 1.2}
+    assert str(reader.stopped) == f"decoding stopped after frame {len(frames)}, at {end:.2f} s of 1.20 s"
+
+
+def _h264(path: Path, frames: list, fmt: str | None = None, options: dict | None = None, **stream) -> None:
+    """``frames`` as H.264 (every frame a key frame: each decodes alone) at 10 fps, or at
+    the ``pts`` given in ms; ``options``: the muxer's (``movflags``)."""
+    import av
+
+    pts = stream.get("pts") or [100 * k for k in range(len(frames))]
+    with av.open(str(path), "w", format=fmt, options=options or {}) as out:
+        video = out.add_stream("libx264", rate=10)
+        video.height, video.width = frames[0].shape[:2]
+        video.pix_fmt, video.options = "yuv420p", {"g": stream.get("g", "1")}
+        video.time_base = video.codec_context.time_base = Fraction(1, 1000)
+        for k, pixels in enumerate(frames):
+            picture = av.VideoFrame.from_ndarray(pixels, format="rgb24")
+            picture.pts, picture.time_base = pts[k], Fraction(1, 1000)
+            out.mux(video.encode(picture))
+        out.mux(video.encode())
+
+
+def test_a_truncated_mp4_with_its_index_first_says_what_it_lost(tmp_path, run_cli, monkeypatch):
+    """FFmpeg decodes an MP4 whose index (moov) comes first up to where the file was cut,
+    and ends there without an error: the frames decoded against the header's count."""
+    monkeypatch.chdir(tmp_path)
+    sprite, ground, motion = _moving(frames=12)
+    made = _frames(sprite, ground, motion)
+    _h264(tmp_path / "whole.mp4", [p for p, _, _ in made], options={"movflags": "faststart"})
+    data = (tmp_path / "whole.mp4").read_bytes()
+    assert data[24:40].find(b"moov") >= 0  # the index first, right after ftyp
+    (tmp_path / "cut.mp4").write_bytes(data[: len(data) // 2])
+    (tmp_path / "whole.mp4").unlink()
+    with ClipReader("cut.mp4") as reader:
+        after = len(list(reader.frames()))
+    assert 2 <= after < 12
+    assert reader.stopped.to_json() == {"after": after, "of": 12}
+    Image.fromarray(made[0][1]).save(tmp_path / "mask.png")
+    result = run_cli("cut.mp4", *FAST, "--mask", "mask.png", "--json")
+    assert result.exit_code == 0, result.stderr
+    note = (
+        f"jeanscv: cut.mp4: note: decoding stopped after frame {after} of 12; the {after} frames decoded were written"
+    )
+    assert note in result.stderr.splitlines()
+    report = json.loads((tmp_path / "cut.jeans.json").read_text())
+    assert report["stopped"] == {"after": after, "of": 12} and report["frames_written"] == after
+    assert len(_decoded(tmp_path / "cut.jeans.mp4")) == after
+
+
+def test_whole_clips_say_nothing_of_stopping(tmp_path):
+    """No note on a clip that decoded to its end: in each container, with a variable frame
+    rate (duration x rate would count 25 frames of 8), and an MP4 cut without re-encoding,
+    whose edit list hides the frames before the cut that its header still counts."""
+    import av
+
+    pixels = [np.full((16, 24, 3), 20 * k, np.uint8) for k in range(8)]
+    vfr = [0, 33, 66, 100, 1000, 2000, 2400, 2433]  # a screen recording: frames when something moves
+    _h264(tmp_path / "a.mp4", pixels, options={"movflags": "faststart"})
+    _h264(tmp_path / "b.mkv", pixels)
+    _h264(tmp_path / "c.mkv", pixels, pts=vfr)
+    _h264(tmp_path / "d.mp4", pixels, pts=vfr)
+    write_clip(tmp_path / "e.gif", pixels, "gif", fps=10)
+    write_clip(tmp_path / "f.webm", pixels, "mp4", fps=10)  # an MP4 named .webm is read as what it is
+    _h264(tmp_path / "source.mkv", pixels + pixels, g="4")
+    with av.open(str(tmp_path / "source.mkv")) as source, av.open(str(tmp_path / "g.mp4"), "w") as out:
+        stream = source.streams.video[0]
+        copy = out.add_stream_from_template(stream)
+        for packet in source.demux(stream):  # `ffmpeg -ss 1.0 -c copy`: from the key frame at 0.8 s
+            if packet.dts is not None and packet.pts >= 800:
+                packet.pts, packet.dts, packet.stream = packet.pts - 1000, packet.dts - 1000, copy
+                out.mux(packet)
+    for name, count in [("a.mp4", 8), ("b.mkv", 8), ("c.mkv", 8), ("d.mp4", 8), ("e.gif", 8), ("f.webm", 8)]:
+        with ClipReader(tmp_path / name) as reader:
+            assert len(list(reader.frames())) == count and reader.stopped is None, name
+    with ClipReader(tmp_path / "g.mp4") as reader:
+        assert reader.info.frames == 8 and len(list(reader.frames())) == 6 and reader.stopped is None
+
+
+def _forged_gif(path: Path) -> None:
+    """A 4x4 GIF whose header claims a 30000x30000 screen."""
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(path)
+    data = bytearray(path.read_bytes())
+    data[6:10] = (30000).to_bytes(2, "little") * 2
+    path.write_bytes(bytes(data))
+
+
+def _jpeg(path: Path) -> None:
+    Image.fromarray(np.full((40, 40, 3), 120, np.uint8)).save(path, format="JPEG")
+
+
+@pytest.mark.parametrize(
+    ("name", "make", "line"),
+    [
+        ("huge.gif", _forged_gif, "frames are 30000x30000, over the limit of 8,294,400 pixels a frame"),
+        ("notes.gif", lambda p: p.write_text("my dog, in a GIF\n"), "not a GIF: the file is text"),
+        (
+            "junk.gif",
+            lambda p: p.write_bytes(bytes(range(256))),
+            "not a GIF: the file does not start with GIF87a or GIF89a",
+        ),
+        ("notes.mp4", lambda p: p.write_text("<html>a page saved as a video</html>"), "not a video: the file is text"),
+        ("photo.mp4", _jpeg, "a JPEG picture, not a video: rename it photo.jpg to dress it as a photo"),
+        (
+            "photo.gif",
+            lambda p: Image.new("RGB", (8, 8)).save(p, format="PNG"),
+            "a PNG picture, not a GIF: rename it photo.png to dress it as a photo",
+        ),
+    ],
+)
+def test_files_that_are_no_clip_say_what_they_are(tmp_path, run_cli, monkeypatch, name, make, line):
+    monkeypatch.chdir(tmp_path)
+    make(tmp_path / name)
+    result = run_cli(name, *FAST, "--json")
+    assert result.exit_code == 1
+    assert result.stderr.splitlines()[1:-1] == [f"jeanscv: {name}: {line}"], result.stderr  # between banner and summary
+    assert "Traceback" not in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
 
 
 # ------------------------------------------------------------------ following

@@ -8,9 +8,11 @@ temporary file and renamed (:func:`jeanscv.io.write.atomic_file`), so a failure 
 leaves no half-written clip.
 
 Every way a clip can be bad ends in a one-line ``JeansError``: no video stream (audio
-only), no frame at all, too many frames, too long, too many pixels per frame, not a clip.
-A clip that stops decoding part way (a truncated download, damaged packets near the end)
-keeps the frames that decoded: :attr:`ClipReader.stopped` says why it ended early.
+only), no frame at all, too many frames, too long, too many pixels per frame, not a clip
+(a file whose first bytes say it is text, or a still picture named as a clip:
+:mod:`jeanscv.io._clip_probe`). A clip that stops decoding part way (a truncated download,
+damaged packets near the end) keeps the frames that decoded: :attr:`ClipReader.stopped`
+says where it ended (a :class:`ClipStop`), against the header's frame count or duration.
 """
 
 from __future__ import annotations
@@ -26,6 +28,17 @@ import numpy as np
 
 from jeanscv.errors import JeansError
 
+from ._clip_probe import (
+    HEAD_BYTES,
+    ClipStop,
+    check_content,
+    gif_loop,
+    gif_screen,
+    is_animated,
+    sniff,
+    stop_of,
+    video_seconds,
+)
 from .clip_names import CLIP_EXTENSIONS, CLIP_FORMATS, MAYBE_ANIMATED_EXTENSIONS, clip_format, is_clip_path
 from .write import on_white
 
@@ -83,14 +96,12 @@ def is_clip(path: str | os.PathLike) -> bool:
         return True
     if suffix not in MAYBE_ANIMATED_EXTENSIONS:
         return False
-    from PIL import Image
-
     from .files import open_regular
 
     try:
-        with open_regular(path) as file, Image.open(file) as image:
-            return bool(getattr(image, "is_animated", False))
-    except Exception:  # noqa: BLE001 - the still decoder gives the one-line reason
+        with open_regular(path) as file:
+            return is_animated(file)
+    except OSError:  # the still decoder gives the one-line reason
         return False
 
 
@@ -115,10 +126,11 @@ def _reason(exc: BaseException) -> str:
 class ClipReader:
     """Frames of a clip file, decoded one at a time (a context manager; :meth:`frames`).
 
-    The header is read on opening: a clip with no video stream, or over ``limits`` by its
-    header, raises ``JeansError`` at once. With ``keep_audio``, ``audio_packets`` collects
-    the audio stream's packets as the frames are demuxed, for a :class:`ClipWriter` to copy
-    (and empties as it takes them); without, they are dropped (memory stays flat).
+    The header is read on opening: a file that is no clip by its first bytes, a clip with
+    no video stream, or over ``limits`` by its header, raises ``JeansError`` at once. With
+    ``keep_audio``, ``audio_packets`` collects the audio stream's packets as the frames are
+    demuxed, for a :class:`ClipWriter` to copy (and empties as it takes them); without,
+    they are dropped (memory stays flat).
     """
 
     def __init__(self, path: str | os.PathLike, limits: ClipLimits | None = None, keep_audio: bool = False) -> None:
@@ -126,13 +138,14 @@ class ClipReader:
 
         self.path = Path(path)
         self.limits = limits or ClipLimits()
-        self.stopped: str | None = None  # why decoding ended before the end of the file
+        self.stopped: ClipStop | None = None  # where decoding ended before the clip's end
         self.audio_packets: list = []
         self.audio_stream = None
         self.keep_audio = keep_audio
         self._file: BinaryIO = _open_nonempty(self.path)
         self._container = None
         self._pillow = None
+        self._video_seconds: float | None = None  # the video's duration as its header states it
         try:
             self.info = self._open()
             self._check_header()
@@ -142,7 +155,13 @@ class ClipReader:
 
     # -------------------------------------------------------------- opening
     def _open(self) -> ClipInfo:
-        if self.path.suffix.lower() == ".webp":
+        head = self._file.read(HEAD_BYTES)
+        self._file.seek(0)
+        kind = sniff(head)
+        check_content(self.path, kind, kind in ("png", "webp") and is_animated(self._file))
+        if kind == "gif":  # FFmpeg decodes no GIF whose screen it will not allocate (it says 0x0)
+            self._check_pixels(*gif_screen(head))
+        if self.path.suffix.lower() == ".webp" or kind == "webp":
             return self._open_pillow()
         import av
 
@@ -170,7 +189,8 @@ class ClipReader:
         elif container.duration is not None:
             seconds = container.duration / 1_000_000
         fmt = container.format.name.split(",")[0]
-        loop = _gif_loop(self._file) if fmt == "gif" else 0
+        loop = gif_loop(self._file) if fmt == "gif" else 0
+        self._video_seconds = video_seconds(container, stream, fmt)
         return ClipInfo(
             (width, height),
             float(rate) if rate else None,
@@ -197,13 +217,16 @@ class ClipReader:
         loop = image.info.get("loop", 0)
         return ClipInfo(image.size, None, frames, None, 0, loop, False, "webp")
 
+    def _check_pixels(self, width: int, height: int) -> None:
+        if width * height > self.limits.max_frame_pixels:
+            raise JeansError(
+                f"frames are {width}x{height}, over the limit of {self.limits.max_frame_pixels:,} pixels a frame"
+            )
+
     def _check_header(self) -> None:
         info, limits = self.info, self.limits
         width, height = info.size
-        if width * height > limits.max_frame_pixels:
-            raise JeansError(
-                f"frames are {width}x{height}, over the limit of {limits.max_frame_pixels:,} pixels a frame"
-            )
+        self._check_pixels(width, height)
         if width < 2 or height < 2:
             raise JeansError(f"frames too small: {width}x{height} pixels")
         if info.frames is not None and info.frames > limits.max_frames:
@@ -214,11 +237,13 @@ class ClipReader:
     # -------------------------------------------------------------- frames
     def frames(self) -> Iterator[ClipFrame]:
         """The frames, upright RGB, in order. Past the caps: ``JeansError``. A decoding
-        error after the first frame ends the clip there (:attr:`stopped` says why);
-        before it, ``JeansError``."""
+        error after the first frame ends the clip there; before it, ``JeansError``. Once
+        the last frame is given, :attr:`stopped` says whether decoding ended before the
+        header's frame count or duration (a truncated file), or at an error."""
         source = self._pillow_frames() if self._pillow is not None else self._av_frames()
         count, self._last_duration = 0, 0.1
         previous: tuple[int, float, np.ndarray] | None = None  # held back until its duration is known
+        first_time, reason = 0.0, None
         while True:
             try:
                 item = next(source)
@@ -229,7 +254,7 @@ class ClipReader:
             except Exception as exc:  # noqa: BLE001 - FFmpeg's and Pillow's many decoding errors
                 if count == 0:
                     raise JeansError(f"cannot decode the clip ({_reason(exc)})") from None
-                self.stopped = f"decoding stopped after frame {count} ({_reason(exc)})"
+                reason = _reason(exc)
                 break
             count += 1
             if count > self.limits.max_frames:
@@ -237,6 +262,7 @@ class ClipReader:
             time, duration, pixels = item
             if count == 1:  # a clip with transparency is one whose first frame has some
                 self.info.alpha = pixels.shape[2] == 4 and bool((pixels[..., 3] < 255).any())
+                first_time = time
             pixels = _rgba(pixels) if self.info.alpha else on_white(pixels)
             if time > self.limits.max_seconds:
                 raise JeansError(f"clip lasts more than {self.limits.max_seconds:g} s")
@@ -248,6 +274,9 @@ class ClipReader:
         if previous is None:
             raise JeansError("the clip has no frames")
         index, start, held = previous
+        info = self.info
+        end = start + self._last_duration - first_time
+        self.stopped = stop_of(count, end, reason, info.frames, self._video_seconds, info.fps)
         yield ClipFrame(index, start, self._last_duration, held)
 
     def _av_frames(self) -> Iterator[tuple[float, float, np.ndarray]]:
@@ -307,21 +336,6 @@ class ClipReader:
 
 #: Pixel formats with alpha, decoded as RGBA and flattened over white.
 _ALPHA_FORMATS = frozenset({"bgra", "rgba", "argb", "abgr", "yuva420p", "yuva444p", "pal8", "ya8", "gbrap"})
-
-
-def _gif_loop(file: BinaryIO) -> int | None:
-    """A GIF's loop count from its NETSCAPE block (0: forever), None when it plays once."""
-    from PIL import Image
-
-    position = file.tell()
-    try:
-        file.seek(0)
-        with Image.open(file) as image:
-            return image.info.get("loop")
-    except Exception:  # noqa: BLE001 - FFmpeg reads it; looping forever is the common case
-        return 0
-    finally:
-        file.seek(position)
 
 
 def iter_frames(frames, fps: float = 25.0) -> Iterator[ClipFrame]:
@@ -551,6 +565,7 @@ __all__ = [
     "ClipInfo",
     "ClipLimits",
     "ClipReader",
+    "ClipStop",
     "ClipWriter",
     "clip_bytes",
     "clip_format",

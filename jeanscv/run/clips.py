@@ -396,8 +396,10 @@ def write_jeans_clip(
     ``on_frame(ClipFrameResult)`` is called after each frame (progress);
     ``decorate(image, original) -> image`` changes each frame before it is encoded (the
     command's captions and side by side). Returns the clip
-    report: the clip's size, frames, fps and duration, why decoding stopped early if it did
-    (``stopped``), and ``frames``, each frame's :meth:`ClipFrameResult.report`.
+    report: the clip's size, frames, fps and duration, where decoding stopped if it ended
+    before the clip did (``stopped``: :meth:`jeanscv.io.clip.ClipStop.to_json`, e.g.
+    ``{"after": 26, "of": 60}``; ``str(ClipStop(**stopped))`` says it in words), and
+    ``frames``, each frame's :meth:`ClipFrameResult.report`.
     """
     from ..io.clip import clip_format, write_clip
 
@@ -429,8 +431,8 @@ def write_jeans_clip(
         "audio": info.audio and fmt == "mp4",
         "frames": frames,
     }
-    if stopped:
-        report["stopped"] = stopped
+    if stopped is not None:
+        report["stopped"] = stopped.to_json()
     return report
 
 
