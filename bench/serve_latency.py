@@ -2,6 +2,7 @@
 
     python -m bench.serve_latency                 # 4 shared real photos, upscaled to 12 MP
     python -m bench.serve_latency --photos 8 --clicks 5 --think 1.0
+    python -m bench.serve_latency --page          # the page's load time and weight alone
 
 A fresh server (its own process, 127.0.0.1, the fit kernels already compiled on this
 installation) is started; then:
@@ -66,13 +67,27 @@ def page_load(server: Server, rounds: int = 20) -> tuple[float, int]:
     return statistics.median(seconds), size
 
 
+def page_line(load: float, weight: int) -> str:
+    """The page's figures as printed: its load time and its weight as served."""
+    return f"page: {load * 1000:.1f} ms (median of 20: /, {len(_SCRIPTS)} scripts, style.css), {weight / 1024:.1f} KB"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--photos", type=int, default=4)
     parser.add_argument("--clicks", type=int, default=5)
     parser.add_argument("--megapixels", type=float, default=12.0)
     parser.add_argument("--think", type=float, default=1.0, help="seconds between the jeans and the first click")
+    parser.add_argument("--page", action="store_true", help="only the page's load time and weight (no photos needed)")
     args = parser.parse_args()
+    if args.page:
+        server = Server()
+        try:
+            print(page_line(*page_load(server)))
+        finally:
+            server.stop()
+            server.remove()
+        return
     pairs = photo_pairs([SHARED])[: args.photos]
     if not pairs:
         raise SystemExit(f"no photos with masks in {SHARED}")
@@ -87,10 +102,7 @@ def main() -> None:
 
     server = Server()
     try:
-        load, weight = page_load(server)
-        print(
-            f"page: {load * 1000:.1f} ms (median of 20: /, {len(_SCRIPTS)} scripts, style.css), {weight / 1024:.1f} KB"
-        )
+        print(page_line(*page_load(server)))
         drops, clicks, firsts, to_first = [], [], [], []
         for name, data, reference in photos:
             dropped = began = time.perf_counter()
@@ -111,11 +123,14 @@ def main() -> None:
                 status, _, body = server.render(answer["photo"], [{"positive": positive, "negative": negative}])
                 result = json.loads(body)
                 assert status == 200, result
-                server.request("GET", result["preview"])
+                if "nothing" in result:  # nothing found there: the page takes the click back
+                    (positive if sign else negative).pop()
+                else:
+                    server.request("GET", result["preview"])
+                    predicted = outline_mask(result["objects"], size)
                 mine.append(time.perf_counter() - began)
                 if len(mine) == 1:
                     to_first.append(time.perf_counter() - dropped)
-                predicted = outline_mask(result["objects"], size)
             clicks += mine
             firsts.append(mine[0])
             print(

@@ -199,9 +199,10 @@ class Load:
             width, height = answer["width"], answer["height"]
             points = [[round(chooser.uniform(0.3, 0.7) * width, 1), round(chooser.uniform(0.3, 0.7) * height, 1)]]
             status, headers, body = server.render(answer["photo"], [{"positive": points, "negative": []}])
-            if status == 200:
+            result = json.loads(body) if status == 200 else {}
+            if status == 200 and "nothing" not in result:  # "nothing found there" has no result
                 with self.lock:
-                    self.photos.append(json.loads(body) | {"photo": answer["photo"]})
+                    self.photos.append(result | {"photo": answer["photo"]})
         else:
             answer = chooser.choice(known)
             what = chooser.choice(["image", "meme", "json", "svg", "clicks", "image", "json", "gif"])

@@ -12,6 +12,7 @@ import io
 import os
 import textwrap
 import unicodedata
+from dataclasses import dataclass, replace
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
@@ -271,13 +272,86 @@ def _wrap(text: str, font, stroke: int, max_width: float) -> list[str] | None:
     return lines
 
 
-def layout_caption(text: str, width: int, height: int, font_path: Path | None = None):
-    """Font, stroke width and lines for a classic meme caption across ``width`` pixels.
+def _wrap_breaking(text: str, font, stroke: int, max_width: float) -> list[str] | None:
+    """Greedy word wrap to ``max_width`` pixels where a word too wide for a line of its
+    own is broken between its letters (a CJK caption has no spaces to break at; a letter
+    keeps its accents); None when one letter alone is too wide."""
+
+    def fits(line: str) -> bool:
+        return font.getlength(line) + 2 * stroke <= max_width
+
+    lines: list[str] = []
+    for word in text.split():
+        if lines and fits(f"{lines[-1]} {word}"):
+            lines[-1] = f"{lines[-1]} {word}"
+            continue
+        letters: list[str] = []
+        for char in word:
+            if letters and unicodedata.category(char).startswith("M"):
+                letters[-1] += char  # a combining accent stays with its letter
+            else:
+                letters.append(char)
+        line = ""
+        for letter in letters:
+            if line and not fits(line + letter):
+                lines.append(line)
+                line = ""
+            line += letter
+            if not fits(line):
+                return None
+        lines.append(line)
+    return lines
+
+
+#: Past three lines a caption takes at most this share of the picture's height (the top
+#: and the bottom caption together two thirds: the subject stays in sight between them)...
+_CAPTION_HEIGHT_SHARE = 1 / 3
+#: ...at a font size down to this share of the height (never under 8 pixels): a caption
+#: that does not fit so is cut, and the page says it is too long.
+_CAPTION_FLOOR_SHARE = 1 / 40
+
+
+@dataclass(frozen=True)
+class CaptionFit:
+    """How one caption is drawn across a picture: its font (file and size), outline
+    width and lines; ``cut`` when even the smallest size could not hold it all (its last
+    line then ends in an ellipsis)."""
+
+    size: int
+    stroke: int
+    lines: tuple[str, ...]
+    font_path: Path | None = None
+    cut: bool = False
+
+    @property
+    def font(self):
+        return _font(self.size, self.font_path)
+
+    @property
+    def line_height(self) -> int:
+        ascent, descent = self.font.getmetrics()
+        return ascent + descent + self.stroke
+
+    def summary(self) -> dict:
+        """What the page is told of it: ``lines`` (how many), ``size`` and ``cut``."""
+        return {"lines": len(self.lines), "size": self.size, "cut": self.cut}
+
+
+def _stroke(size: int) -> int:
+    return max(1, round(size / 14))
+
+
+def fit_caption(text: str, width: int, height: int, font_path: Path | None = None) -> CaptionFit:
+    """How a classic meme caption is drawn across a ``width`` x ``height`` picture.
 
     Fewer lines win over a bigger font: the largest size (at most 1/8 of the height)
     at which the upper-case text fits 94% of the width on one line, else on two, else
-    on three, each with a smaller size floor; past that the smallest size is used and
-    the text is cut to three lines with an ellipsis.
+    on three, each with a smaller size floor; else 1/24 of the height, on three lines
+    (words too long for a line broken); past three lines (or lines wider than the
+    picture), the largest size from there down to 1/40 of the height at which the lines,
+    words broken only where one is wider than a line, take at most a third of the
+    height. Only a caption that does not fit even so is cut to three lines at 1/24 with
+    an ellipsis (``cut``).
     """
     text = " ".join(text.upper().split())
     max_width = 0.94 * width
@@ -286,20 +360,60 @@ def layout_caption(text: str, width: int, height: int, font_path: Path | None = 
         size = largest
         while size >= max(8, int(floor)):
             font = _font(size, font_path)
-            stroke = max(1, round(size / 14))
-            lines = _wrap(text, font, stroke, max_width)
+            lines = _wrap(text, font, _stroke(size), max_width)
             if lines is not None and len(lines) <= lines_allowed:
-                return font, stroke, lines
+                return CaptionFit(size, _stroke(size), tuple(lines), font_path)
             size = int(size * 0.92) if size > 8 else 0
     size = max(8, int(height / 24))
     font = _font(size, font_path)
-    stroke = max(1, round(size / 14))
     chars = max(1, int(max_width / max(font.getlength("W"), 1)))
     lines = textwrap.wrap(text, chars, break_long_words=True) or [""]
-    if len(lines) > _MAX_CAPTION_LINES:
-        lines = lines[:_MAX_CAPTION_LINES]
-        lines[-1] = lines[-1][: max(0, chars - 1)] + "\u2026"
-    return font, stroke, lines
+    # Lines of letters as wide as a "W" (most captions that get here) are drawn as they
+    # were before captions gained more lines, to the byte; those that would be cut, or
+    # run off the picture's sides (CJK letters are wider), are fitted below instead.
+    inside = all(font.getlength(line) + 2 * _stroke(size) <= max_width for line in lines)
+    if len(lines) <= _MAX_CAPTION_LINES and inside:
+        return CaptionFit(size, _stroke(size), tuple(lines), font_path)
+    fitted = _fit_more_lines(text, max_width, height, size, font_path)
+    if fitted is not None:
+        return fitted
+    lines = lines[:_MAX_CAPTION_LINES]
+    lines[-1] = lines[-1][: max(0, chars - 1)] + "\u2026"
+    return CaptionFit(size, _stroke(size), tuple(lines), font_path, cut=True)
+
+
+def _fit_more_lines(text: str, max_width: float, height: int, start: int, font_path: Path | None) -> CaptionFit | None:
+    """The largest size from ``start`` down to the floor at which ``text``, wrapped to
+    as many lines as it needs, takes at most a third of the height; None if none does."""
+    floor = max(8, int(height * _CAPTION_FLOOR_SHARE))
+    size = max(start, floor)
+    while True:
+        fit = CaptionFit(size, _stroke(size), (), font_path)
+        lines = _wrap_breaking(text, fit.font, fit.stroke, max_width)
+        if lines and len(lines) * fit.line_height <= _CAPTION_HEIGHT_SHARE * height:
+            return replace(fit, lines=tuple(lines))
+        if size == floor:
+            return None
+        size = max(floor, int(size * 0.92))  # the floor itself is tried last
+
+
+def layout_caption(text: str, width: int, height: int, font_path: Path | None = None):
+    """Font, stroke width and lines for a classic meme caption across ``width`` pixels
+    (:func:`fit_caption`'s)."""
+    fit = fit_caption(text, width, height, font_path)
+    return fit.font, fit.stroke, list(fit.lines)
+
+
+def caption_fits(width: int, height: int, top: str | None, bottom: str | None) -> dict[str, CaptionFit]:
+    """How ``top`` and ``bottom`` are drawn across a ``width`` x ``height`` picture
+    (keys ``"top"``, ``"bottom"``; a blank caption has none): what :func:`add_captions`
+    draws, and what the page is told of them."""
+    fits = {}
+    for key, text in (("top", top), ("bottom", bottom)):
+        if text and text.strip():
+            drawn, font_path = caption_text(text)
+            fits[key] = fit_caption(drawn, width, height, font_path)
+    return fits
 
 
 def add_captions(image: np.ndarray, top: str | None, bottom: str | None) -> np.ndarray:
@@ -307,23 +421,24 @@ def add_captions(image: np.ndarray, top: str | None, bottom: str | None) -> np.n
     ``top`` along the top edge and ``bottom`` along the bottom edge. Returns a copy."""
     if not (top or bottom):
         return image
+    height, width = image.shape[:2]
+    return draw_captions(image, caption_fits(width, height, top, bottom))
+
+
+def draw_captions(image: np.ndarray, fits: dict[str, CaptionFit]) -> np.ndarray:
+    """``image`` with the captions of :func:`caption_fits` drawn on it. Returns a copy."""
     canvas = Image.fromarray(np.ascontiguousarray(image))
     draw = ImageDraw.Draw(canvas)
     width, height = canvas.size
     margin = max(2, height // 40)
     fill = (255, 255, 255, 255) if canvas.mode == "RGBA" else (255, 255, 255)
     outline = (0, 0, 0, 255) if canvas.mode == "RGBA" else (0, 0, 0)
-    for text, at_top in ((top, True), (bottom, False)):
-        if not text or not text.strip():
-            continue
-        text, font_path = caption_text(text)
-        font, stroke, lines = layout_caption(text, width, height, font_path)
-        ascent, descent = font.getmetrics()
-        line_height = ascent + descent + stroke
-        y = margin if at_top else height - margin - line_height * len(lines)
-        for line in lines:
+    for key, fit in fits.items():
+        font, line_height = fit.font, fit.line_height
+        y = margin if key == "top" else height - margin - line_height * len(fit.lines)
+        for line in fit.lines:
             x = (width - font.getlength(line)) / 2
-            draw.text((x, y), line, font=font, fill=fill, stroke_width=stroke, stroke_fill=outline)
+            draw.text((x, y), line, font=font, fill=fill, stroke_width=fit.stroke, stroke_fill=outline)
             y += line_height
     return np.asarray(canvas).copy()
 

@@ -175,6 +175,41 @@ def test_auto_and_the_click_session_cut_the_hypotheses_once(client, monkeypatch)
     assert clicked.status_code == 200 and len(cuts) == 1
 
 
+def test_nothing_found_is_an_answer_not_a_refusal(client):
+    """Issue 49: a click or a box on plain background was refused 422, and the browser
+    logged every such click as a failed request. It is a normal answer now, 200 with
+    ``nothing`` (the reason the page shows) and no result; a bad body stays 422."""
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    url = f"/api/photos/{first['photo']}/render"
+    for objects, words in (
+        ([{"positive": [[20.5, 20.5]]}], "two.png: nothing found there: click inside the subject"),
+        ([{"box": [5, 5, 40, 40]}], "two.png: nothing found in that box: click inside the subject"),
+    ):
+        answer = client.post(url, json={"objects": objects})
+        assert answer.status_code == 200, answer.text
+        assert answer.json() == {"photo": first["photo"], "name": "two.png", "kind": "photo", "nothing": words}
+    assert client.post(url, content=b"{").status_code == 422  # a bad request is still refused
+
+
+def test_the_caption_layer_says_how_each_caption_was_fitted(client):
+    """The caption picture's answer carries each caption's fit (lines, font size, cut):
+    a long caption takes more lines (it was cut to three), one too long for a small
+    picture is cut and says so."""
+    first = upload(client, "two.png", png_bytes(scene().image)).json()
+    url = f"/api/results/{first['result']}/captions"
+    long = "how would a dog wear jeans if it had two legs like ours and a tail to fit through them " * 2
+    layer = client.get(url, params={"top": long, "bottom": "wear jeans?"})
+    assert layer.status_code == 200 and layer.headers["content-type"] == "image/png"
+    fits = json.loads(layer.headers["x-caption-fit"])
+    assert fits["top"]["lines"] > 3 and not fits["top"]["cut"]
+    assert (fits["bottom"]["lines"], fits["bottom"]["cut"]) == (1, False)
+    small = upload(client, "small.png", png_bytes(scene().image[::5, ::5].copy())).json()
+    fits = json.loads(
+        client.get(f"/api/results/{small['result']}/captions", params={"top": long}).headers["x-caption-fit"]
+    )
+    assert fits == {"top": {"lines": 3, "size": 8, "cut": True}}
+
+
 def test_a_negative_click_alone_takes_that_away_from_the_automatic_subject(client):
     """A negative click alone edits the automatic subject the page shows. On the dog and
     its owner the detector sees the dog, and the page shows the dog: a negative click on

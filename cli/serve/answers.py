@@ -37,6 +37,14 @@ def client_text(reason: str) -> str:
     return _ABSOLUTE_PATH.sub(lambda match: match.group(1) or "(a folder)", text)[:500]
 
 
+def nothing_found(exc: Exception) -> bool:
+    """Whether ``exc`` says that clicks found nothing (a click or a box on plain
+    background, or negative clicks that leave nothing): an outcome the page shows, not
+    a bad request. Told by its words: the click engine raises a plain JeansError."""
+    text = str(exc)
+    return isinstance(exc, JeansError) and text.startswith(("nothing found ", "nothing is left of "))
+
+
 def attachment(filename: str) -> str:
     """A Content-Disposition that saves the answer as ``filename`` (its ASCII letters)."""
     ascii_name = "".join(c if c.isascii() and c.isprintable() and c not in '"\\' else "_" for c in filename)
@@ -55,4 +63,4 @@ async def json_object(request: Request) -> dict:
     return data
 
 
-__all__ = ["Refused", "attachment", "client_text", "error", "json_object"]
+__all__ = ["Refused", "attachment", "client_text", "error", "json_object", "nothing_found"]

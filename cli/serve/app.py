@@ -6,6 +6,7 @@ of photos: no file path is ever built from what a client sends.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -25,7 +26,7 @@ from jeanscv.errors import JeansError
 from jeanscv.options import SUBJECTS
 
 from . import clips, engine, folder, found
-from .answers import Refused, client_text  # noqa: F401 - client_text: the tests' name for it
+from .answers import Refused, client_text, nothing_found
 from .answers import attachment as _attachment
 from .answers import error as _error
 from .answers import json_object as _json_object
@@ -309,9 +310,20 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
             raise Refused(422, f"{photo.name}: {exc}") from None
         return photo_id, photo, clicks, render_options
 
+    def render_clicked(self, photo_id: str, photo: engine.Photo, clicks, render_options) -> dict:
+        """:meth:`render` of a request's clicks, where "nothing found there" (a click or a
+        box on plain background) is an answer, ``{"nothing": reason}``, not a refusal: the
+        page shows it and takes the click back, and the browser logs no failed request."""
+        try:
+            return self.render(photo_id, photo, clicks, render_options)
+        except JeansError as exc:
+            if not nothing_found(exc):
+                raise
+            return {"nothing": client_text(f"{photo.name}: {exc}")}
+
     async def rerender(self, request: Request) -> Response:
         photo_id, photo, clicks, render_options = await self.clicked(request)
-        answer = await self.job(photo.name, self.render, photo_id, photo, clicks, render_options)
+        answer = await self.job(photo.name, self.render_clicked, photo_id, photo, clicks, render_options)
         return JSONResponse({"photo": photo_id, "name": photo.name, "kind": photo.kind, **answer})
 
     async def result_file(self, request: Request) -> Response:
@@ -323,8 +335,10 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
             return Response(result.preview, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
         if kind == "captions":  # the meme's captions over the preview (a few tens of ms: not the pool's queue)
             top, bottom = (request.query_params.get(key, "")[:200] for key in ("top", "bottom"))
-            layer = await run_in_threadpool(engine.caption_layer, result.preview, top, bottom)
-            return Response(layer, media_type="image/png", headers={"Cache-Control": "private, max-age=3600"})
+            layer, fits = await run_in_threadpool(engine.caption_layer, result.preview, top, bottom)
+            # How each caption was fitted rides along (ASCII JSON): the page says when one is cut.
+            headers = {"Cache-Control": "private, max-age=3600", "X-Caption-Fit": json.dumps(fits)}
+            return Response(layer, media_type="image/png", headers=headers)
         if kind not in DOWNLOADS:
             return _error(404, "no such download")
         photo = self.state.photos.get(result.photo_id)

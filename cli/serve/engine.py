@@ -441,18 +441,20 @@ def encode_preview(pixels: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def caption_layer(preview: bytes, top: str, bottom: str) -> bytes:
+def caption_layer(preview: bytes, top: str, bottom: str) -> tuple[bytes, dict]:
     """The meme's captions alone, as a PNG the size of the preview, transparent elsewhere:
     drawn by the Meme download's own code (same font, wrapping and fitting), so what
-    the page lays over its picture is what the download holds."""
-    from ..extras import add_captions
+    the page lays over its picture is what the download holds; and how each caption was
+    fitted (``{"top": {"lines", "size", "cut"}, ...}``: the page says when one is cut)."""
+    from ..extras import caption_fits, draw_captions
 
     with Image.open(io.BytesIO(preview)) as image:
         width, height = image.size
-    layer = add_captions(np.zeros((height, width, 4), np.uint8), top, bottom)
+    fits = caption_fits(width, height, top, bottom)
+    layer = draw_captions(np.zeros((height, width, 4), np.uint8), fits)
     buffer = io.BytesIO()
     Image.fromarray(layer, "RGBA").save(buffer, "PNG", compress_level=1)
-    return buffer.getvalue()
+    return buffer.getvalue(), {key: fit.summary() for key, fit in fits.items()}
 
 
 def output_name(photo: Photo, suffix: str) -> str:

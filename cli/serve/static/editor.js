@@ -175,24 +175,33 @@ async function rerender() {
     const answer = await post(`/api/photos/${state.photo}/render`, { objects, options: renderOptions() });
     answer.key = JSON.stringify(objects);
     if (generation !== state.generation) return; // another photo since: not this one's
-    if (sequence > state.shown) {
+    if (answer.nothing) {
+      // Nothing found where clicked: an answer of its own (not a failed request), shown
+      // as the reason, and the click is taken back.
+      notUsed(answer.nothing, fromClick);
+    } else if (sequence > state.shown) {
       state.shown = sequence;
       showError("");
       if (!state.again) show(answer);
     }
   } catch (error) {
     if (generation !== state.generation) return;
-    showError(error.message);
-    // A click the server could not use ("nothing found there") is taken back: the
-    // picture, outline and markers stay as they were before it.
-    if (fromClick && error.status === 422 && !state.again) takeBack();
-    else setStatus("");
+    notUsed(error.message, fromClick && error.status === 422);
   } finally {
     if (generation === state.generation) {
       state.inFlight = false;
       if (state.again) rerender();
     }
   }
+}
+
+// A render the server could not make from the clicks: its reason shown, and the click
+// that asked for it (takeBackClick) taken back: the picture, outline and markers
+// stay as they were before it.
+function notUsed(reason, takeBackClick) {
+  showError(reason);
+  if (takeBackClick && !state.again) takeBack();
+  else setStatus("");
 }
 
 function takeBack() {
