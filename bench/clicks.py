@@ -77,14 +77,19 @@ def reference_box(reference: np.ndarray) -> tuple[int, int, int, int]:
 
 
 def run_photo(
-    pixels: np.ndarray, reference: np.ndarray, clicks: int = MAX_CLICKS, box: bool = False, shown: int = 3
+    pixels: np.ndarray,
+    reference: np.ndarray,
+    clicks: int = MAX_CLICKS,
+    box: bool = False,
+    shown: int = 3,
+    detector: str = "auto",
 ) -> dict:
     """Simulate ``clicks`` clicks (after the reference's box, with ``box``), or fewer
     where the IoU reaches :data:`DONE`: IoU after each, the set-up and per-click seconds,
     the clicks made and the mask after (at most) ``shown`` of them (``"shown"``; 0 with
     ``box``: the box's own); with ``box`` also the box alone's IoU (``box_iou``)."""
     start = time.perf_counter()
-    session = ClickSession(pixels)
+    session = ClickSession(pixels, detector=detector)
     setup = time.perf_counter() - start
     positive: list = []
     negative: list = []
@@ -186,6 +191,9 @@ def main() -> None:
     parser.add_argument("--clicks", type=int, default=MAX_CLICKS)
     parser.add_argument("--box", action="store_true", help="a box (the reference mask's) first, then the clicks")
     parser.add_argument("--width", type=int, help="resize every photo to this width first")
+    parser.add_argument(
+        "--detector", choices=("auto", "none"), default="auto", help="the detector's boxes start clicks (default auto)"
+    )
     args = parser.parse_args()
     if args.sheet_after < (0 if args.box else 1):
         parser.error("--sheet-after must be at least 1 (0 only with --box: the box alone)")
@@ -232,7 +240,7 @@ def run_set(pairs: list, args, sheet_path: Path | None = None) -> str:
             pixels, reference = upscale(pixels, reference, args.megapixels)
         if args.width:
             pixels, reference = resize_to_width(pixels, reference, args.width)
-        result = run_photo(pixels, reference, args.clicks, box=args.box, shown=args.sheet_after)
+        result = run_photo(pixels, reference, args.clicks, box=args.box, shown=args.sheet_after, detector=args.detector)
         result["ious"] = ious = result["ious"] + [result["ious"][-1]] * (MAX_CLICKS - len(result["ious"]))
         result["noc85"], result["noc90"] = noc(ious, 0.85), noc(ious, 0.90)
         results.append(result)

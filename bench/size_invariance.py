@@ -27,7 +27,7 @@ from bench.clicks import photo_sets, reference_box, resize_to_width
 from jeanscv.errors import JeansError
 from jeanscv.io.image import load_image
 from jeanscv.subject.consensus import iou
-from jeanscv.subject.extraction import extract_silhouette
+from jeanscv.subject.extraction import extract_silhouettes
 from jeanscv.subject.interactive import ClickSession, simulated_click
 from jeanscv.subject.photo import SharedHypotheses
 
@@ -36,16 +36,20 @@ WITHIN = 0.05
 KINDS = ("auto", "click", "box")
 
 
-def measure(pixels: np.ndarray, reference: np.ndarray, point: tuple[float, float]) -> dict[str, float]:
-    """IoU with ``reference`` of the automatic subject, a click at ``point`` and the
-    reference's box, on ``pixels``; 0 where nothing was found."""
+def measure(
+    pixels: np.ndarray, reference: np.ndarray, point: tuple[float, float], detector: str = "auto"
+) -> dict[str, float]:
+    """IoU with ``reference`` of the automatic subject (the detector's where it finds one,
+    as the command's), a click at ``point`` and the reference's box, on ``pixels``; 0
+    where nothing was found."""
     shared = SharedHypotheses()
     scores = {}
     try:
-        scores["auto"] = iou(extract_silhouette(pixels, shared=shared).mask >= 0.5, reference)
+        found = extract_silhouettes(pixels, shared=shared, detector=detector)[0]
+        scores["auto"] = iou(found.mask >= 0.5, reference)
     except JeansError:
         scores["auto"] = 0.0
-    session = ClickSession(pixels, shared=shared)
+    session = ClickSession(pixels, shared=shared, detector=detector)
     for kind, clicks in (("click", ([point], [])), ("box", ([], [], reference_box(reference)))):
         try:
             scores[kind] = iou(session.segment(*clicks).mask, reference)
@@ -54,7 +58,7 @@ def measure(pixels: np.ndarray, reference: np.ndarray, point: tuple[float, float
     return scores
 
 
-def run_set(pairs: list, width: int) -> str:
+def run_set(pairs: list, width: int, detector: str = "auto") -> str:
     """Both sizes of every photo of one set: prints a row each, returns the set's line."""
     print(f"| photo | size | {' | '.join(f'{kind} own | {kind} {width}' for kind in KINDS)} |")
     print(f"|---|---|{'---:|' * 2 * len(KINDS)}")
@@ -65,8 +69,8 @@ def run_set(pairs: list, width: int) -> str:
         _, (x, y) = simulated_click(reference, None)
         big, big_reference = resize_to_width(pixels, reference, width)
         factor = big_reference.shape[1] / reference.shape[1]
-        own = measure(pixels, reference, (x, y))
-        resized = measure(big, big_reference, (x * factor, y * factor))
+        own = measure(pixels, reference, (x, y), detector)
+        resized = measure(big, big_reference, (x * factor, y * factor), detector)
         rows.append((own, resized))
         cells = " | ".join(f"{own[kind]:.3f} | {resized[kind]:.3f}" for kind in KINDS)
         print(f"| {name} | {reference.shape[1]}x{reference.shape[0]} | {cells} |", flush=True)
@@ -82,9 +86,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="*", type=Path)
     parser.add_argument("--width", type=int, default=4000, help="the other size: this many pixels wide")
+    parser.add_argument(
+        "--detector", choices=("auto", "none"), default="auto", help="the shipped detector (default auto)"
+    )
     args = parser.parse_args()
     sets = photo_sets(args.folders)
-    lines = [(folder, run_set(pairs, args.width)) for folder, pairs in sets]
+    lines = [(folder, run_set(pairs, args.width, args.detector)) for folder, pairs in sets]
     print()
     header = " | ".join(f"{kind}: within {WITHIN} | {kind}: IoU own / {args.width}" for kind in KINDS)
     print(f"| set | {header} |")

@@ -284,12 +284,13 @@ def test_the_answer_names_the_detected_animals_and_a_box_of_one_dresses_it(clien
     assert [d["dressed"] for d in answer["detections"]] == [False, True]
     x, _, w, _ = answer["objects"][0]["box"]
     assert x >= left[0] - 2 and x + w <= left[2] + 2 and answer["summary"]["detection"] is None
-    # A click (no box) on the right cat: its first click takes a part of its face (its nose
-    # and mouth, a sixth of the box), which does not count as dressing that cat.
+    # A click (no box) on the right cat starts from its detected box: the whole cat, not a
+    # part of its face (without the detector: its nose and mouth, a sixth of the box).
     clicked = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"positive": [[750, 150]]}]})
     x, y, w, h = clicked.json()["objects"][0]["box"]
-    assert w * h < 0.25 * (right[2] - right[0]) * (right[3] - right[1])
-    assert [d["dressed"] for d in clicked.json()["detections"]] == [False, False]
+    assert w * h > 0.5 * (right[2] - right[0]) * (right[3] - right[1])
+    assert x >= right[0] - 2 and x + w <= right[2] + 2
+    assert [d["dressed"] for d in clicked.json()["detections"]] == [True, False]
     # A box drawn round it (not the detection's own) dresses it: the cut lies in its box and fills it.
     drawn = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"box": [530, 0, 962, 300]}]})
     assert [d["dressed"] for d in drawn.json()["detections"]] == [True, False]
@@ -304,9 +305,9 @@ def test_name_it_names_the_dressed_animal_where_the_detector_is_sure(client, tmp
     chosen = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"box": other["box"]}]})
     assert chosen.status_code == 200, chosen.text
     assert chosen.json()["caption"] == ["how would a cat", "wear jeans?"]
-    # A click that takes a part of a cat's face dresses no detected animal: "this".
-    part = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"positive": [[750, 150]]}]})
-    assert part.json()["caption"] == ["how would this", "wear jeans?"]
+    # A click on a cat dresses the cat its detected box holds: named too.
+    clicked = client.post(f"/api/photos/{cats['photo']}/render", json={"objects": [{"positive": [[750, 150]]}]})
+    assert clicked.json()["caption"] == ["how would a cat", "wear jeans?"]
     drawing = upload(client, "person.png", write_silhouette_png(tmp_path / "person.png").read_bytes()).json()
     assert drawing["caption"] == ["how would this", "wear jeans?"]
 

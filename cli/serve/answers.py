@@ -11,7 +11,7 @@ import re
 from starlette.requests import Request
 from starlette.responses import JSONResponse
 
-from jeanscv.errors import JeansError
+from jeanscv.errors import JeansError, NothingFound
 
 
 class Refused(Exception):
@@ -40,9 +40,8 @@ def client_text(reason: str) -> str:
 def nothing_found(exc: Exception) -> bool:
     """Whether ``exc`` says that clicks found nothing (a click or a box on plain
     background, or negative clicks that leave nothing): an outcome the page shows, not
-    a bad request. Told by its words: the click engine raises a plain JeansError."""
-    text = str(exc)
-    return isinstance(exc, JeansError) and text.startswith(("nothing found ", "nothing is left of "))
+    a bad request."""
+    return isinstance(exc, NothingFound)
 
 
 def attachment(filename: str) -> str:

@@ -245,7 +245,7 @@ class Photo:
             from jeanscv.subject.interactive import ClickSession
 
             shown = np.asarray(self.auto[0].mask) >= 0.5 if self.auto else None
-            self._session = ClickSession(self.pixels, shared=self.shared, automatic=shown)
+            self._session = ClickSession(self.pixels, shared=self.shared, automatic=shown, detector=DETECTOR)
             self.shared = None  # the session holds what it needs
         return self._session
 

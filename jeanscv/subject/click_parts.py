@@ -274,3 +274,25 @@ def small_copy(rgb: np.ndarray, size: int) -> tuple[np.ndarray, Callable[[Sequen
         return [(min(int(x * sx), small_size[0] - 1), min(int(y * sy), small_size[1] - 1)) for x, y in points]
 
     return np.ascontiguousarray(downscale(rgb, small_size)), onto
+
+
+def simulated_click(reference: np.ndarray, predicted: np.ndarray | None) -> tuple[bool, tuple[float, float]]:
+    """The next click of the standard simulated user (Xu et al. 2016; RITM, Sofiiuk et
+    al. 2022), for measuring: ``(positive?, (x, y))``.
+
+    The first click (``predicted`` None) at the interior point of ``reference`` farthest
+    from its boundary (the image border counts as boundary); each next click in the
+    largest error region (the one whose interior point lies farthest from its boundary),
+    at that point: positive where the subject was missed, negative where background was
+    taken. ``reference`` and ``predicted`` are ``(H, W)`` bool.
+    """
+    if predicted is None:
+        distance = interior_distance(reference)
+        y, x = np.unravel_index(np.argmax(distance), distance.shape)
+        return True, (x + 0.5, y + 0.5)
+    missed = interior_distance(reference & ~predicted)
+    taken = interior_distance(~reference & predicted)
+    positive = missed.max() >= taken.max()
+    distance = missed if positive else taken
+    y, x = np.unravel_index(np.argmax(distance), distance.shape)
+    return bool(positive), (x + 0.5, y + 0.5)

@@ -164,7 +164,8 @@ def extract_silhouettes(
         # is found without clicks: the detector's where it finds one (as the page shows it).
         found = _detected_silhouettes(pixels, "one", subject, detector)
         automatic = np.asarray(found[0].mask) >= 0.5 if found else None
-    chosen = clicked_silhouettes(ClickSession(pixels, shared=shared, automatic=automatic), wanted)
+    session = ClickSession(pixels, shared=shared, automatic=automatic, detector=detector)
+    chosen = clicked_silhouettes(session, wanted)
     if objects == "all":
         try:
             main = extract_silhouette(

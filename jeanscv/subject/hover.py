@@ -58,9 +58,9 @@ class FirstClickMap:
 def first_click_map(session) -> FirstClickMap:
     """The :class:`FirstClickMap` of a :class:`~jeanscv.subject.interactive.ClickSession`
     (about a second; the page asks for it once per photo)."""
+    from .click_first import _EDGE_CONTRAST
     from .click_masks import grouped_pieces
     from .click_parts import agreed, interior_distance
-    from .interactive import _EDGE_CONTRAST
 
     graph = session._graph
     labels, count, area = graph.labels, graph.count, graph.area
@@ -136,7 +136,30 @@ def first_click_map(session) -> FirstClickMap:
             nodes = found[0] if kind == "geodesic" else piece_nodes[index] > 0.5 * area
             region_nodes.append(np.union1d(np.flatnonzero(nodes), [node]).astype(np.int64))
         choice[node] = regions[key]
+    _detected_choices(session, points, choice, regions, region_nodes)
     return FirstClickMap(labels, choice, region_nodes)
+
+
+def _detected_choices(session, points: np.ndarray, choice: np.ndarray, regions: dict, region_nodes: list) -> None:
+    """Where a first click starts from a detected object's box
+    (:meth:`~jeanscv.subject.interactive.ClickSession.meant`: inside the box, on its cut),
+    the map shows that box's cut, in place (``choice``, ``regions``, ``region_nodes``)."""
+    if not session.detections:
+        return
+    graph = session._graph
+    for node, (x, y) in enumerate(points):
+        meant = session._meant((int(x), int(y)))
+        if meant is None:
+            continue
+        key = ("detected", meant.box)
+        if key not in regions:
+            cut = session._boxed(meant.box, ())
+            nodes = np.bincount(graph.labels[cut], minlength=graph.count) > 0.5 * graph.area
+            regions[key] = len(region_nodes)
+            region_nodes.append(np.flatnonzero(nodes).astype(np.int64))
+        if node not in region_nodes[regions[key]]:
+            region_nodes[regions[key]] = np.union1d(region_nodes[regions[key]], [node]).astype(np.int64)
+        choice[node] = regions[key]
 
 
 def _central_pixels(labels: np.ndarray, centres: np.ndarray, count: int) -> np.ndarray:
