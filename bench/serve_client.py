@@ -24,6 +24,35 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
+def request(
+    port: int, method: str, path: str, body: bytes | None = None, headers: dict | None = None, timeout: float = 300
+) -> tuple[int, dict, bytes]:
+    """(status, headers, body) of one request to the server on loopback ``port``, on a
+    new connection."""
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=timeout)
+    try:
+        connection.request(method, path, body=body, headers=headers or {})
+        response = connection.getresponse()
+        return response.status, dict(response.getheaders()), response.read()
+    finally:
+        connection.close()
+
+
+def upload(port: int, name: str, data: bytes) -> tuple[int, dict, bytes]:
+    """:func:`request` that uploads ``data`` as the photo or clip ``name`` (a form, as the
+    page sends it)."""
+    boundary = secrets.token_hex(12)
+    body = (
+        (
+            f'--{boundary}\r\nContent-Disposition: form-data; name="file"; filename="{name}"\r\n'
+            "Content-Type: application/octet-stream\r\n\r\n"
+        ).encode()
+        + data
+        + f"\r\n--{boundary}--\r\n".encode()
+    )
+    return request(port, "POST", "/api/photos", body, {"Content-Type": f"multipart/form-data; boundary={boundary}"})
+
+
 class Server:
     """``python -m jeanscv serve`` on 127.0.0.1 in a child process; ``stop()`` sends Ctrl-C."""
 
@@ -53,25 +82,10 @@ class Server:
 
     def request(self, method: str, path: str, body: bytes | None = None, headers: dict | None = None):
         """(status, headers, body) of one request, on a new connection."""
-        connection = http.client.HTTPConnection("127.0.0.1", self.port, timeout=300)
-        try:
-            connection.request(method, path, body=body, headers=headers or {})
-            response = connection.getresponse()
-            return response.status, dict(response.getheaders()), response.read()
-        finally:
-            connection.close()
+        return request(self.port, method, path, body, headers)
 
     def upload(self, name: str, data: bytes):
-        boundary = secrets.token_hex(12)
-        body = (
-            (
-                f'--{boundary}\r\nContent-Disposition: form-data; name="file"; filename="{name}"\r\n'
-                "Content-Type: application/octet-stream\r\n\r\n"
-            ).encode()
-            + data
-            + f"\r\n--{boundary}--\r\n".encode()
-        )
-        return self.request("POST", "/api/photos", body, {"Content-Type": f"multipart/form-data; boundary={boundary}"})
+        return upload(self.port, name, data)
 
     def render(self, photo: str, objects: list, options: dict | None = None):
         body = json.dumps({"objects": objects, "options": options or {}}).encode()

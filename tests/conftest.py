@@ -223,6 +223,44 @@ def paper_silhouette(name: str, dtype=np.float32) -> np.ndarray:
 
 
 @pytest.fixture
+def live_app():
+    """``live_app(**config)`` -> ``(port, state)`` of a fresh ``jeanscv serve`` app on a
+    real uvicorn server in a thread (the command's own HTTP protocol, a free loopback
+    port, no warm-up); stopped after the test."""
+    import socket
+    import threading
+
+    import uvicorn
+
+    from jeanscv_cli.serve import run
+    from jeanscv_cli.serve.app import Config, create_app
+
+    servers = []
+
+    def make(**overrides):
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        app = create_app(Config(port=port, warm=False, **overrides))
+        server = uvicorn.Server(
+            uvicorn.Config(app, host="127.0.0.1", port=port, log_level="error", lifespan="on", http=run._protocol())
+        )
+        thread = threading.Thread(target=server.run, daemon=True)
+        thread.start()
+        servers.append((server, thread))
+        deadline = time.monotonic() + 30
+        while not server.started:
+            assert time.monotonic() < deadline, "the server did not start"
+            time.sleep(0.02)
+        return port, app.app.state.jeanscv
+
+    yield make
+    for server, thread in servers:
+        server.should_exit = True
+        thread.join(timeout=10)
+
+
+@pytest.fixture
 def make_client():
     """``make_client(**config)`` -> a started test client of a fresh ``jeanscv serve``
     app on http://127.0.0.1:8000 (no warm-up; closed after the test)."""

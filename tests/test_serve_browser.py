@@ -3,11 +3,9 @@ Playwright (never ``playwright install``: no browser is downloaded).
 
 Skipped only where /usr/bin/chromium is missing and $CI is not set; in CI it must run.
 With ``JEANSCV_SCREENSHOT=PATH`` the main test also saves the page in use there, and with
-``JEANSCV_FOLDER_SCREENSHOT=PATH`` the folder test its page after a save, and with
-``JEANSCV_HOVER_SCREENSHOT=PATH`` the hover test its page with the dog previewed, and
-with ``JEANSCV_PHONE_SCREENSHOT=PATH`` the phone test its page in Remove mode
-(``docs/serve.jpg``, ``docs/serve-folder.jpg``, ``docs/serve-hover.jpg`` and
-``docs/serve-phone.jpg`` are made so: see ``bench/serve_screenshot.py``).
+``JEANSCV_HOVER_SCREENSHOT=PATH`` the hover test its page with the dog previewed
+(``docs/serve.jpg`` and ``docs/serve-hover.jpg`` are made so, the phone's and the folder's
+pictures by ``test_serve_browser_touch.py``: see ``bench/serve_screenshot.py``).
 """
 
 from __future__ import annotations
@@ -109,6 +107,21 @@ def page(browser):
         yield page
     finally:
         context.close()
+
+
+def _scene_with_renders(page, server: str) -> tuple:
+    """The page opened with the dog and its owner dropped on it: ``(photo, bodies,
+    answers)``, the lists filling with each render request's JSON body and each good
+    render answer's JSON."""
+    bodies: list = []
+    answers: list = []
+    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
+    page.on("response", lambda r: r.url.endswith("/render") and r.ok and answers.append(r.json()))
+    page.goto(server + "/")
+    page.wait_for_selector("#garment option", state="attached")
+    photo = scene()
+    _drop_photo(page, photo.image)
+    return photo, bodies, answers
 
 
 def _drop_photo(page, image: np.ndarray, name: str = "pets.png", wait: bool = True) -> None:
@@ -518,10 +531,6 @@ def test_folder_mode_saves_reverts_and_shows_it_at_once(browser, tmp_path):
             assert page.locator(".tile .badge").count() == 1  # at once, no reload
             assert "1 fixed" in page.inner_text("#folder-counts")
             assert page.is_disabled("#save")  # nothing new to save
-            if os.environ.get("JEANSCV_FOLDER_SCREENSHOT"):  # docs/serve-folder.jpg (bench/serve_screenshot.py)
-                page.wait_for_function("() => document.querySelector('.tile img.thumb')?.naturalWidth > 0")
-                page.evaluate("() => window.scrollTo(0, 0)")
-                page.screenshot(path=os.environ["JEANSCV_FOLDER_SCREENSHOT"], type="jpeg", quality=88, full_page=True)
 
             page.click(".tile")  # opened again: the saved click is back, and can be undone
             page.wait_for_function("() => document.getElementById('status').textContent.includes('from your clicks')")
@@ -739,7 +748,7 @@ def test_keys_paste_and_the_photo_shown_at_once(server, page):
 def test_a_folder_to_work_through(browser, tmp_path):
     """Folder mode as a list to work through: "needs a look" puts the photos automatic
     finding was unsure of first (the listing's ``uncertain``, here added to the server's
-    answer: the page must also work without it), the arrow keys open the previous and
+    answers, the thumbnails' and the opened photo's too), the arrow keys open the previous and
     next photo in that order, and the counts say how many are fixed and left."""
     photos = tmp_path / "photos"
     photos.mkdir()
@@ -751,14 +760,24 @@ def test_a_folder_to_work_through(browser, tmp_path):
         with _serving({"folder": photos}) as (server, _):
             page = context.new_page()
 
-            def unsure_b(route):
-                response = route.fetch()
-                listing = response.json()
-                for item in listing["items"]:
-                    item["uncertain"] = item["name"] == "b.png"
-                route.fulfill(response=response, json=listing)
+            def unsure_b(route):  # b.png (item 1) unsure, in every answer that says so (the page follows them all)
+                response, url = route.fetch(), route.request.url
+                if url.endswith("/api/folder"):
+                    listing = response.json()
+                    for item in listing["items"]:
+                        item["uncertain"] = item["name"] == "b.png"
+                    route.fulfill(response=response, json=listing)
+                elif url.endswith("/thumb"):
+                    unsure = str(url.endswith("/1/thumb")).lower()
+                    route.fulfill(response=response, headers={**response.headers, "x-uncertain": unsure})
+                elif url.endswith("/open"):
+                    answer = response.json()
+                    answer["summary"]["uncertain"] = url.endswith("/1/open")
+                    route.fulfill(response=response, json=answer)
+                else:
+                    route.fulfill(response=response)
 
-            page.route("**/api/folder", unsure_b)
+            page.route("**/api/folder**", unsure_b)
             page.goto(server + "/")
             page.wait_for_selector(".tile")
             names = (
@@ -784,14 +803,7 @@ def test_a_drag_draws_a_box_and_a_click_stays_a_click(server, page):
     """Issue 32's wish: boxes from the clicks issue, drawn by dragging on the photo. The
     box alone moves the jeans onto what it holds; a click after it is still a click."""
     pending, _, _ = _track_api(page, server)
-    bodies = []
-    answers = []
-    page.on("request", lambda r: r.url.endswith("/render") and bodies.append(json.loads(r.post_data)))
-    page.on("response", lambda r: r.url.endswith("/render") and r.ok and answers.append(r.json()))
-    page.goto(server + "/")
-    page.wait_for_selector("#garment option", state="attached")
-    photo = scene()
-    _drop_photo(page, photo.image)
+    photo, bodies, answers = _scene_with_renders(page, server)
     rows, cols = np.nonzero(photo.masks[1])  # the dog
     x0, y0, x1, y1 = cols.min() - 8, rows.min() - 8, cols.max() + 8, rows.max() + 8
     box = page.locator("#result").bounding_box()
@@ -1020,8 +1032,6 @@ def test_a_phone_by_touch_alone(server, browser, tmp_path):
             page.inner_text("#mode-badge") == "\u2212 Remove"
             and page.get_attribute("#mode-remove", "aria-pressed") == "true"
         )
-        if os.environ.get("JEANSCV_PHONE_SCREENSHOT"):
-            page.screenshot(path=os.environ["JEANSCV_PHONE_SCREENSHOT"], type="jpeg", quality=85)
         page.touchscreen.tap(*_point_at(page, 400, 470))  # the grass below them: taken away (it was not in)
         page.wait_for_function("() => document.querySelectorAll('#overlay circle.click.neg').length === 1")
         page.tap("#bar-undo")

@@ -100,13 +100,13 @@ def test_making_a_clip_stops_at_the_time_limit(make_client):
     frames, _ = walking(frames=40)
     opened = upload(client, "long.gif", clip_bytes(frames, "gif", fps=10.0)).json()
     state = client.app.app.state.jeanscv
-    state.config.job_seconds = state.pool.job_seconds = 0.5  # the upload took its own time
+    state.config.job_seconds = state.clip_pool.job_seconds = 0.5  # the upload took its own time
     answer = client.post(f"/api/photos/{opened['photo']}/clip", json={})
     assert answer.status_code == 504
     assert answer.json()["error"] == "long.gif: took longer than the server's limit of 0.5 s"
     # The making itself stops at its next frame (the worker is free again), and keeps nothing.
     deadline = time.monotonic() + 60
-    while state.pool._running or len(list(state.tmp.iterdir())) > 1:
+    while state.clip_pool._running or len(list(state.tmp.iterdir())) > 1:
         assert time.monotonic() < deadline, "the making did not stop"
         time.sleep(0.1)
     assert client.get(f"/api/photos/{opened['photo']}/clip/progress").json()["done"] < 40

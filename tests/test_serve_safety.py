@@ -25,11 +25,11 @@ import pytest
 from PIL import Image
 from test_cli import _env
 from test_serve import BASE, png_bytes, scene, upload
-from test_serve_cli import free_port, start_server
+from test_serve_cli import start_server
 
 pytest.importorskip("starlette")
 
-from jeanscv_cli.serve.app import Config, client_text, create_app  # noqa: E402
+from jeanscv_cli.serve.app import client_text  # noqa: E402
 from jeanscv_cli.serve.store import Busy, Pool, Stopping, TooSlow  # noqa: E402
 
 
@@ -323,35 +323,13 @@ def test_a_busy_port_is_one_line():
 
 
 @pytest.fixture
-def live_server(monkeypatch):
+def live_server(monkeypatch, live_app):
     """``live_server(**config)`` -> port of a real uvicorn server in a thread, with the
     command's protocol (head deadline patched to 0.5 s)."""
-    import uvicorn
-
     from jeanscv_cli.serve import run
 
     monkeypatch.setattr(run, "HEAD_SECONDS", 0.5)
-    servers = []
-
-    def make(**overrides) -> int:
-        port = free_port()
-        app = create_app(Config(port=port, warm=False, **overrides))
-        server = uvicorn.Server(
-            uvicorn.Config(app, host="127.0.0.1", port=port, log_level="error", lifespan="on", http=run._protocol())
-        )
-        thread = threading.Thread(target=server.run, daemon=True)
-        thread.start()
-        servers.append((server, thread))
-        deadline = time.monotonic() + 30
-        while not server.started:
-            assert time.monotonic() < deadline, "the server did not start"
-            time.sleep(0.02)
-        return port
-
-    yield make
-    for server, thread in servers:
-        server.should_exit = True
-        thread.join(timeout=10)
+    return lambda **overrides: live_app(**overrides)[0]
 
 
 def closed_within(connection: socket.socket, seconds: float, trickle: bytes = b"") -> bool:

@@ -95,6 +95,10 @@ class Config:
     debug: bool = False
     #: What the page takes as a clip (frames, seconds, pixels a frame).
     clip_caps: clips.ClipCaps = field(default_factory=clips.ClipCaps)
+    #: Clips are made on their own workers, with their own bounded queue: a photo never
+    #: waits behind a clip's making (seconds to minutes).
+    clip_workers: int = 1
+    clip_queue: int = 4
     extra_names: tuple[str, ...] = field(default_factory=tuple)
 
 
@@ -119,6 +123,13 @@ class State:
         self.photos = Store(config.store_bytes)
         self.results = Store(max(config.store_bytes // 4, 64 << 20))
         self.pool = Pool(config.workers, config.queue, max_wait=config.max_wait, job_seconds=config.job_seconds)
+        self.clip_pool = Pool(
+            config.clip_workers,
+            config.clip_queue,
+            max_wait=config.max_wait,
+            job_seconds=config.job_seconds,
+            name="jeanscv-serve-clip",
+        )
         self.tmp: Path | None = None  # made when the server starts, removed when it stops
         self.folder_lock = threading.Lock()
         self.backend = config.backend
@@ -136,10 +147,11 @@ class State:
     def stop(self) -> None:
         """Answer every waiting and running request at once (the server is stopping)."""
         self.pool.stop()
+        self.clip_pool.stop()
 
     def close(self) -> None:
         """Stop, and remove the temporary folder; running jobs are not waited for."""
-        self.pool.stop()
+        self.stop()
         if self.tmp is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
 
@@ -174,14 +186,17 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
             for path, (file, media) in _STATIC.items()
         }
 
-    async def job(self, name: str, function, *args):
-        """``function(*args)`` on the pool: its value, else :class:`Refused` with the one-line
-        reason (a bad input 422, busy 503, stopping 503, too slow 504, a bug 500)."""
+    async def job(self, name: str, function, *args, pool: Pool | None = None):
+        """``function(*args)`` on the photos' pool (or ``pool``): its value, else
+        :class:`Refused` with the one-line reason (a bad input 422, busy 503, stopping 503,
+        too slow 504, a bug 500)."""
+        pool = pool or self.state.pool
         try:
-            return await self.state.pool.run(function, *args)
+            return await pool.run(function, *args)
         except Busy:
-            retry = str(self.state.pool.retry_after())
-            busy = "the server is busy with other photos: trying again in a moment"
+            retry = str(pool.retry_after())
+            what = "clips" if pool is self.state.clip_pool else "photos"
+            busy = f"the server is busy with other {what}: trying again in a moment"
             raise Refused(503, busy, {"Retry-After": retry}) from None
         except Stopping:
             raise Refused(503, "the server is stopping") from None

@@ -9,10 +9,16 @@ of the still flow, and they refer to frame 0, as ``--point`` does for the comman
 (:class:`ClipCaps`) on frames, seconds and pixels per frame are checked from the header
 on upload and again while the clip is made; a clip's making stops at the server's job
 time limit. Every refusal is one line, without paths.
+
+A clip is made on the server's clip pool (its own worker and bounded queue: a photo never
+waits behind a clip), and only while someone waits for it: when the client that asked
+closes its connection (the page left, or made the clip again) the making stops at its
+next frame, its half-written file removed.
 """
 
 from __future__ import annotations
 
+import asyncio
 import os
 import tempfile
 import threading
@@ -30,6 +36,7 @@ from jeanscv.io.write import on_white
 
 from . import engine
 from .answers import Refused, attachment, error
+from .guard import BodyRefused
 from .store import TooSlow
 
 #: Uploaded clips kept on disk for making (the oldest is removed for a newer one).
@@ -122,6 +129,11 @@ def open_clip(path: Path, name: str, caps: ClipCaps, max_pixels: int, subject: s
     return photo
 
 
+class Cancelled(Exception):
+    """Nobody waits for this clip any more: raised from the making's per-frame callback,
+    it stops :func:`~jeanscv.run.clips.write_jeans_clip` there (which writes nothing)."""
+
+
 def make_clip(
     photo: engine.Photo,
     clicks,
@@ -130,11 +142,13 @@ def make_clip(
     caps: ClipCaps,
     seconds: float,
     folder: Path,
+    cancel: threading.Event | None = None,
 ) -> tuple[bytes, str, dict]:
     """``(bytes, file name, summary)`` of the clip with its jeans: ``clicks`` (None:
     automatic) on frame 0, the page's options (captions and side by side on every
     frame). Stops with :class:`~.store.TooSlow` past ``seconds`` (answered 504, as the
-    pool answers a job it stops waiting for), with JeansError at a cap."""
+    pool answers a job it stops waiting for), with JeansError at a cap, and with
+    :class:`Cancelled` at the first frame that ends after ``cancel`` is set."""
     from jeanscv.run.clips import write_jeans_clip
 
     from ..worker import clip_decorate
@@ -149,6 +163,10 @@ def make_clip(
     source.done = 0
 
     def on_frame(result) -> None:
+        if cancel is not None and cancel.is_set():
+            # Before the count: a making stopped says nothing more to the progress that a
+            # newer making of the same clip now reports.
+            raise Cancelled(f"stopped at frame {result.index}")
         source.done = result.index + 1
         if time.monotonic() > deadline:
             # The pool's own wait for this job starts a little later (when the server's
@@ -202,22 +220,43 @@ class ClipEndpoints:
 
     async def make_clip(self, request: Request) -> Response:
         """The photo's clip with its jeans (clicks and options as for a render): made on the
-        pool, kept as a result; its address plays in the page and downloads."""
+        clip pool while the client waits, kept as a result; its address plays in the page
+        and downloads. A client that leaves stops the making at its next frame."""
         _, photo, clicks, render_options = await self.clicked(request)
         if photo.clip is None:
             raise Refused(422, f"{photo.name}: not a clip")
         config = self.config
-        made, name, summary = await self.job(
-            photo.name,
-            make_clip,
-            photo,
-            clicks,
-            render_options,
-            self.state.backend,
-            config.clip_caps,
-            config.job_seconds,
-            self.state.tmp,
+        cancel = threading.Event()
+        photo.clip.done = 0  # while it waits for the clip worker too
+        making = asyncio.ensure_future(
+            self.job(
+                photo.name,
+                make_clip,
+                photo,
+                clicks,
+                render_options,
+                self.state.backend,
+                config.clip_caps,
+                config.job_seconds,
+                self.state.tmp,
+                cancel,
+                pool=self.state.clip_pool,
+            )
         )
+        gone = asyncio.ensure_future(client_gone(request))
+        try:
+            await asyncio.wait({making, gone}, return_when=asyncio.FIRST_COMPLETED)
+            if not making.done():
+                # The client left: a waiting job gives its place up, a running one stops below.
+                making.cancel()
+                await asyncio.gather(making, return_exceptions=True)
+                return error(499, f"{photo.name}: the page left before its clip was made")  # read by nobody
+            made, name, summary = making.result()
+        finally:
+            # Whatever ended this request (made, refused, too slow, the server stopping, the
+            # client gone), nobody waits for this making any more: it stops at its next frame.
+            cancel.set()
+            gone.cancel()
         clip_id = self.state.results.put(MadeClip(made, name, summary["media"]), len(made) + 4096)
         return JSONResponse({"clip": f"/api/clips/{clip_id}", "name": name, **summary})
 
@@ -237,6 +276,20 @@ class ClipEndpoints:
         return Response(made.data, media_type=made.media, headers=headers)
 
 
+async def client_gone(request: Request) -> None:
+    """Return when the client has closed its connection, never while it waits. The body
+    has been read, so the next message the server gets for the request is its
+    ``http.disconnect`` (uvicorn sends it when the connection closes, or once the answer
+    is sent)."""
+    while True:
+        try:
+            message = await request.receive()
+        except BodyRefused:
+            continue  # the Guard's limit for a stalled body: no body is expected any more
+        if message["type"] == "http.disconnect":
+            return
+
+
 def progress(photo: engine.Photo) -> dict:
     """How far the making of the photo's clip is: ``done`` and ``frames`` (None: unknown)."""
     source: ClipSource | None = photo.clip
@@ -248,11 +301,13 @@ def progress(photo: engine.Photo) -> dict:
 __all__ = [
     "CLIPS_KEPT",
     "CLIP_MEDIA",
+    "Cancelled",
     "ClipCaps",
     "ClipEndpoints",
     "ClipFiles",
     "ClipSource",
     "MadeClip",
+    "client_gone",
     "make_clip",
     "open_clip",
     "progress",

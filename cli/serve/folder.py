@@ -200,7 +200,14 @@ class FolderEndpoints:
         if job is None:
             return _error(404, "no such photo in the folder")
         made = await self.job(job.path.name, self.thumbnail, job)
-        return Response(made, media_type="image/jpeg", headers={"Cache-Control": "no-cache"})
+        # Whether its subject may be the wrong thing, as the listing's ``uncertain`` says it
+        # now (known once this server made the output): the page marks the tile at once.
+        uncertain = self.state.unsure.get(job.path.name)
+        headers = {
+            "Cache-Control": "no-cache",
+            "X-Uncertain": "unknown" if uncertain is None else str(uncertain).lower(),
+        }
+        return Response(made, media_type="image/jpeg", headers=headers)
 
     async def folder_open(self, request: Request) -> Response:
         job = self.folder_job(request)

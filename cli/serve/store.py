@@ -120,10 +120,20 @@ class Pool:
     * A request waits at most ``job_seconds`` for its running job (:class:`TooSlow`).
     * :meth:`stop` answers every waiting and running request with :class:`Stopping`
       at once. The threads are daemons: the server does not wait for a running job.
+
+    The server has two: the photos' and the clips' (a clip's making runs for seconds to
+    minutes, so photos never wait behind one); ``name`` names the threads.
     """
 
     def __init__(
-        self, workers: int, queue: int, *, max_wait: float = 30.0, job_seconds: float = 120.0, background: int = 4
+        self,
+        workers: int,
+        queue: int,
+        *,
+        max_wait: float = 30.0,
+        job_seconds: float = 120.0,
+        background: int = 4,
+        name: str = "jeanscv-serve",
     ):
         self.workers = workers
         self.queue = queue
@@ -137,7 +147,7 @@ class Pool:
         self._stopped = False
         self._stop_events: list = []  # (loop, asyncio.Event) of the loops that ran requests
         for index in range(workers):
-            threading.Thread(target=self._work, name=f"jeanscv-serve-{index}", daemon=True).start()
+            threading.Thread(target=self._work, name=f"{name}-{index}", daemon=True).start()
 
     @property
     def stopped(self) -> bool:

@@ -93,9 +93,11 @@ function wire() {
   frame.addEventListener("contextmenu", addClick);
   $("mode-add").addEventListener("click", () => setMode(false));
   $("mode-remove").addEventListener("click", () => setMode(true));
+  $("mode-box").addEventListener("click", () => setMode(false, true));
   $("undo").addEventListener("click", undo);
   $("bar-add").addEventListener("click", () => setMode(false));
   $("bar-remove").addEventListener("click", () => setMode(true));
+  $("bar-box").addEventListener("click", () => setMode(false, true));
   $("bar-undo").addEventListener("click", undo);
   wireZoom();
   wireCursor();
@@ -116,7 +118,9 @@ function wire() {
   $("another").addEventListener("click", () => {
     leavePhoto();
     state.photo = null;
+    state.item = null;
     state.result = null;
+    document.dispatchEvent(new CustomEvent("jeanscv:opened", { detail: { item: null, name: null, answer: null } }));
     $("view").hidden = true;
     $("panel").hidden = true;
     $("drop").hidden = false;

@@ -4,7 +4,7 @@ import { $, state } from "./state.js";
 
 const HANDLES = ["nw", "n", "ne", "e", "se", "s", "sw", "w"];
 const CURSORS = { nw: "nwse-resize", se: "nwse-resize", ne: "nesw-resize", sw: "nesw-resize", n: "ns-resize", s: "ns-resize", e: "ew-resize", w: "ew-resize" };
-const REACH = 10; // screen pixels from a handle's centre that grab it
+const REACH = 10; // screen pixels from a handle's centre that grab it (a finger: twice that)
 
 // A handle's point on the box (photo pixels).
 function handlePoint(box, handle) {
@@ -25,7 +25,7 @@ function handleAt(event) {
   if (!box) return null;
   const rect = $("result").getBoundingClientRect();
   let best = null;
-  let nearest = REACH;
+  let nearest = event.pointerType === "touch" ? 2 * REACH : REACH;
   for (const handle of HANDLES) {
     const [x, y] = handlePoint(box, handle);
     const distance = Math.hypot(rect.left + (x / state.width) * rect.width - event.clientX,

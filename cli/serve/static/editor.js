@@ -7,7 +7,7 @@ import { choiceWords, foundAt, foundWords, onChoose } from "./found.js";
 import { clearHover, forgetHover, loadHover } from "./hover.js";
 import { resetZoom } from "./zoom.js";
 import { post } from "./server.js";
-import { $, clickedObjects, setStatus, showError, state } from "./state.js";
+import { $, clickedObjects, fingerWords, setStatus, showError, state } from "./state.js";
 
 function renderOptions() {
   return { style: $("style").value, garment: $("garment").value, posture: $("posture").value };
@@ -40,6 +40,8 @@ async function upload(file) {
     return;
   }
   const generation = leavePhoto();
+  state.item = null;
+  opened(null, file.name); // in folder mode: no folder photo is open now, this one is only tried
   setStatus(`Putting jeans on ${file.name}…`, true);
   showLocal(file, generation);
   const form = new FormData();
@@ -110,10 +112,17 @@ function start(answer, item) {
     ]);
   }
   if (item !== null) state.saved = clicksKey(); // what the folder holds for this photo
+  opened(item, answer.name, answer);
   show(answer);
   showClip(answer);
   updateControls();
   if (answer.kind === "photo") loadHover(answer.photo, state.generation);
+}
+
+// The photo now open, said to the page (folder.js marks its tile, or none for a photo
+// only tried): ``item`` is its folder index or null, ``answer`` the server's when it is in.
+function opened(item, name, answer = null) {
+  document.dispatchEvent(new CustomEvent("jeanscv:opened", { detail: { item, name, answer } }));
 }
 
 // ------------------------------------------------------------------ results
@@ -150,11 +159,18 @@ function describe(answer) {
   const others = (answer.detections || []).some((d) => !d.dressed);
   const choice = answer.clicks ? choiceWords(answer) : "";
   let text;
-  if (choice) text = `${state.name}: ${choice}, as you chose.`;
-  else if (answer.clicks) text = `${state.name}: ${count}, from your clicks.`;
-  else if (summary.uncertain) text = `${state.name}: ${foundWords(answer)}, but not sure it is the subject. ${others ? "Tap another box or click" : "Click"} the right thing.`;
-  else text = `${state.name}: ${foundWords(answer)}. Wrong thing? ${others ? "Tap another box, or click" : "Click"} the one that should wear them.`;
-  setStatus(text);
+  if (choice) text = `${choice}, as you chose.`;
+  else if (answer.clicks) text = `${count}, from your clicks.`;
+  else if (summary.uncertain) text = `${foundWords(answer)}, but not sure it is the subject. ${others ? "Tap another box or click" : "Click"} the right thing.`;
+  else text = `${foundWords(answer)}. Wrong thing? ${others ? "Tap another box, or click" : "Click"} the one that should wear them.`;
+  setStatus(`${state.name}: ${fingerWords(text)}`); // "tap" on a touch screen
+}
+
+// A reason from the server in the page's words ("nothing found there: tap inside the
+// subject" on a touch screen); the photo's name at its start is left as it is.
+function reasonWords(reason) {
+  const name = `${state.name}: `;
+  return reason.startsWith(name) ? name + fingerWords(reason.slice(name.length)) : fingerWords(reason);
 }
 
 async function rerender() {
@@ -199,7 +215,7 @@ async function rerender() {
 // that asked for it (takeBackClick) taken back: the picture, outline and markers
 // stay as they were before it.
 function notUsed(reason, takeBackClick) {
-  showError(reason);
+  showError(reasonWords(reason));
   if (takeBackClick && !state.again) takeBack();
   else setStatus("");
 }
@@ -223,7 +239,9 @@ function photoPoint(event) {
 }
 
 // ------------------------------------------------------------------ boxes
-// A drag on the photo (mouse or pen) draws a box around the object; a click stays a click.
+// A drag on the photo (mouse or pen; a finger in Box mode, where one finger does not
+// scroll the zoomed photo) draws a box around the object; a click or tap stays a click.
+// A second finger on the photo makes the drag a pinch (zoom.js): no box.
 let drag = null;
 
 function boxOf(a, b) {
@@ -231,10 +249,17 @@ function boxOf(a, b) {
 }
 
 function pointerDown(event) {
+  if (drag && event.pointerId !== drag.pointer) { // a second finger: a pinch, not a box
+    drag = null;
+    state.dragged = true; // nor a click
+    drawOverlay();
+    return;
+  }
   state.dragged = false;
-  if (state.kind !== "photo" || !state.result || event.button !== 0 || event.pointerType === "touch") return;
+  if (state.kind !== "photo" || !state.result || event.button !== 0) return;
+  if (event.pointerType === "touch" && (!state.boxing || !event.isPrimary)) return; // a finger scrolls, outside Box mode
   // On a handle of the current object's box: that box's sides move (no click, no new box).
-  drag = { start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false, handle: handleAt(event) };
+  drag = { pointer: event.pointerId, start: photoPoint(event), x: event.clientX, y: event.clientY, moved: false, handle: handleAt(event) };
 }
 
 function pointerMove(event) {
@@ -246,6 +271,7 @@ function pointerMove(event) {
     }
     return;
   }
+  if (event.pointerId !== drag.pointer) return;
   if (!drag.moved && Math.hypot(event.clientX - drag.x, event.clientY - drag.y) < 6) return;
   if (!drag.moved) $("frame").setPointerCapture(event.pointerId);
   drag.moved = true;
@@ -254,7 +280,7 @@ function pointerMove(event) {
 }
 
 function pointerUp(event) {
-  if (!drag) return;
+  if (!drag || event.pointerId !== drag.pointer) return;
   const done = drag;
   drag = null;
   if (done.handle) {
@@ -444,27 +470,32 @@ function newObject() {
   }
   drawOverlay();
   updateControls();
-  setStatus(`Object ${state.current + 1}: click it.`);
+  setStatus(fingerWords(`Object ${state.current + 1}: click it.`));
 }
 
-function setMode(negative) {
+// The click mode: Add, Remove (``negative``) or Box (``boxing``: a finger's drag draws a
+// box, a tap adds as in Add mode). Shown on the buttons, the phone's bar and the badge.
+function setMode(negative, boxing = false) {
   state.negative = negative;
+  state.boxing = boxing && !negative;
   clearHover();
-  $("mode-add").setAttribute("aria-pressed", String(!negative));
-  $("mode-remove").setAttribute("aria-pressed", String(negative));
-  $("bar-add").setAttribute("aria-pressed", String(!negative));
-  $("bar-remove").setAttribute("aria-pressed", String(negative));
+  const mode = state.boxing ? "box" : negative ? "remove" : "add";
+  for (const [name, ids] of [["add", ["mode-add", "bar-add"]], ["remove", ["mode-remove", "bar-remove"]], ["box", ["mode-box", "bar-box"]]]) {
+    for (const id of ids) $(id).setAttribute("aria-pressed", String(mode === name));
+  }
+  $("zoom").classList.toggle("boxing", state.boxing); // one finger draws there, it does not scroll
   const badge = $("mode-badge");
-  badge.textContent = negative ? "\u2212 Remove" : "+ Add";
-  badge.classList.toggle("remove", negative);
+  badge.textContent = { add: "+ Add", remove: "\u2212 Remove", box: "\u25ad Box" }[mode];
+  badge.classList.toggle("remove", mode === "remove");
+  badge.classList.toggle("box", mode === "box");
 }
 
 function updateControls() {
   const photo = state.kind === "photo";
-  for (const id of ["mode-add", "mode-remove", "new-object", "undo", "redo", "reset"]) $(id).disabled = !photo;
+  for (const id of ["mode-add", "mode-remove", "mode-box", "new-object", "undo", "redo", "reset"]) $(id).disabled = !photo;
   $("undo").disabled = !photo || state.history.length === 0;
   $("bar-undo").disabled = $("undo").disabled;
-  $("bar-add").disabled = $("bar-remove").disabled = !photo;
+  $("bar-add").disabled = $("bar-remove").disabled = $("bar-box").disabled = !photo;
   $("mode-badge").hidden = !photo;
   $("redo").disabled = !photo || state.future.length === 0;
   $("reset").disabled = !photo || state.objects.length === 0;

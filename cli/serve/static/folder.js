@@ -1,5 +1,7 @@
 // Folder mode (jeanscv serve FOLDER): the gallery, opening a photo, saving its clicks
-// (or reverting it to automatic).
+// (or reverting it to automatic). Whether a photo's automatic subject may be the wrong
+// thing ("? unsure") is marked as the server learns it (each thumbnail's answer, each
+// photo opened or saved), with the counts and the "needs a look" order: no reload.
 import { clickedObjects, clicksKey, leavePhoto, start, updateControls } from "./editor.js";
 import { answerOf, post } from "./server.js";
 import { $, setStatus, showError, state } from "./state.js";
@@ -12,6 +14,7 @@ async function loadGallery() {
   grid.replaceChildren();
   items.clear();
   $("drop-folder-note").hidden = false;
+  $("drop").classList.add("tried"); // a strip under the gallery, for a photo only tried
   document.querySelector(".folder-keys").hidden = false;
   const tiles = answer.items.map((item) => {
     items.set(item.item, item);
@@ -24,13 +27,9 @@ async function loadGallery() {
     name.textContent = item.name;
     tile.append(placeholder(), name);
     setBadge(tile, item.clicks);
-    if (item.uncertain) {
-      const unsure = document.createElement("span");
-      unsure.className = "unsure";
-      unsure.textContent = " ? unsure";
-      name.appendChild(unsure);
-    }
-    tile.addEventListener("click", () => openItem(item, tile));
+    setUnsure(tile, item);
+    if (item.item === state.item) markOpen(item.item);
+    tile.addEventListener("click", () => openItem(item));
     grid.appendChild(tile);
     return { item, tile };
   });
@@ -60,6 +59,65 @@ function setBadge(tile, clicks) {
     badge.remove();
   }
 }
+
+// The "? unsure" mark: automatic finding was unsure of its subject, and it has no clicks.
+function setUnsure(tile, item) {
+  const name = tile.querySelector(".name");
+  let mark = name.querySelector(".unsure");
+  const unsure = Boolean(item.uncertain) && !item.clicks;
+  if (unsure && !mark) {
+    mark = document.createElement("span");
+    mark.className = "unsure";
+    mark.textContent = " ? unsure";
+    mark.title = "automatic finding was unsure: it may have dressed the wrong thing";
+    name.appendChild(mark);
+  } else if (!unsure && mark) {
+    mark.remove();
+  }
+}
+
+// What the server now says of an item (``uncertain``, ``clicks``): its tile, the counts
+// and the gallery's order follow at once.
+function learn(index, known) {
+  const item = items.get(index);
+  if (!item) return;
+  const now = { ...item, ...known };
+  if (now.uncertain === item.uncertain && now.clicks === item.clicks) return;
+  items.set(index, now);
+  const tile = document.querySelector(`.tile[data-item="${index}"]`);
+  if (tile) {
+    setBadge(tile, now.clicks);
+    setUnsure(tile, now);
+  }
+  updateCounts();
+  applyFilter();
+}
+
+// The photo open on the page: its tile marked (in words too), every other plain; none
+// for a photo only tried (dropped), which the line above the photo says is not the folder's.
+function markOpen(index) {
+  for (const tile of document.querySelectorAll(".tile")) {
+    const open = index !== null && Number(tile.dataset.item) === index;
+    tile.classList.toggle("open", open);
+    if (open) tile.setAttribute("aria-current", "true");
+    else tile.removeAttribute("aria-current");
+  }
+}
+
+function opened(event) {
+  if ($("gallery").hidden) return; // not folder mode
+  const { item, name, answer } = event.detail;
+  markOpen(item);
+  const note = $("open-note");
+  note.hidden = !name;
+  note.classList.toggle("tried", item === null);
+  note.textContent = !name ? "" : item === null
+    ? `${name} is only tried: it is not in the folder, and nothing of it is saved there.`
+    : `Open: ${name}, from the folder (Save to folder keeps its clicks).`;
+  // Opened by the server: whether its automatic subject is unsure is known now.
+  if (item !== null && answer && answer.summary) learn(item, { uncertain: !answer.clicks && Boolean(answer.summary.uncertain) });
+}
+document.addEventListener("jeanscv:opened", opened);
 
 function updateCounts() {
   const all = [...items.values()];
@@ -97,6 +155,9 @@ async function loadThumb(item, tile) {
     }
     const shown = tile.querySelector(".thumb");
     tile.querySelector(".bad")?.remove();
+    // Made (or found) by the server: whether its subject may be the wrong thing, where known.
+    const uncertain = response.headers.get("X-Uncertain");
+    if (uncertain === "true" || uncertain === "false") learn(item.item, { uncertain: uncertain === "true" });
     if (response.ok) {
       const thumb = document.createElement("img");
       thumb.className = "thumb";
@@ -115,10 +176,10 @@ async function loadThumb(item, tile) {
   }
 }
 
-async function openItem(item, tile) {
+async function openItem(item) {
   showError("");
   setStatus(`Opening ${item.name}…`, true);
-  for (const other of document.querySelectorAll(".tile")) other.classList.toggle("open", other === tile);
+  markOpen(item.item);
   const generation = leavePhoto();
   $("frame").classList.add("working"); // the photo before stays in sight, veiled, until this one is in
   $("panel").inert = true;
@@ -158,9 +219,7 @@ async function saveToFolder() {
   setStatus(revert ? "Removing the clicks and making the automatic output…" : "Saving the clicks and the new output…", true);
   try {
     const entry = await post(`/api/folder/${item}/clicks`, revert ? { photo: state.photo, objects: [], revert: true } : { photo: state.photo, objects });
-    items.set(item, { ...items.get(item), clicks: entry.clicks });
-    updateCounts();
-    applyFilter();
+    learn(item, { clicks: entry.clicks, uncertain: entry.uncertain });
     if (item === state.item) {
       state.saved = key;
       updateControls();
@@ -170,7 +229,6 @@ async function saveToFolder() {
       : `Saved: ${state.name}'s clicks and its jeans are in the folder; 'jeanscv FOLDER' uses them.`);
     const tile = document.querySelector(`.tile[data-item="${item}"]`);
     if (tile) {
-      setBadge(tile, entry.clicks);
       tile.querySelector(".thumb").replaceWith(placeholder());
       loadThumb(items.get(item), tile);
     }

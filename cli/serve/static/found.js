@@ -103,7 +103,7 @@ function drawFound() {
     label.setAttribute("aria-label", dressed[index] ? `the ${d.class} (${score}) wears the jeans` : `dress the ${d.class} (${score})`);
     label.title = dressed[index] ? "wears the jeans" : `dress this ${d.class}`;
     if (dressed[index]) label.tabIndex = -1; // no choice to make there (Tab goes on to the others)
-    // Its bottom-left corner on the box's: the photo's top corners hold the mode and the zoom.
+    // Its bottom-left corner on the box's (inside the photo, where the box reaches its top).
     label.style.left = percent(x0, state.width);
     label.style.bottom = percent(state.height - y1, state.height);
     // The label is the photo's no click: a press on it starts no box and adds no point.

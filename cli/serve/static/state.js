@@ -17,7 +17,8 @@ const state = {
   future: [], // the steps undone, for redo
   saved: null, // the folder's clicks for this photo (clicksKey()), null outside folder mode
   result: null, // last answer of the server
-  negative: false, // the touch toggle
+  negative: false, // Remove mode (the touch toggle; Shift with a mouse)
+  boxing: false, // Box mode: a one-finger drag on the photo draws a box (a mouse's drag always does)
   sequence: 0, // renders sent
   shown: 0, // the newest render shown
   inFlight: false,
@@ -42,6 +43,17 @@ function showError(text) {
   $("error").hidden = !text;
 }
 
+// A touch screen (no hover, a coarse pointer: a phone or a tablet): the page speaks of
+// fingers there ("tap"), as the CSS's .for-touch and .for-pointer words do.
+function touchScreen() {
+  return window.matchMedia("(hover: none) and (pointer: coarse)").matches;
+}
+
+// The page's words for the screen it is on: "click" becomes "tap" on a touch screen.
+function fingerWords(text) {
+  return touchScreen() ? text.replace(/\bclick\b/g, "tap").replace(/\bClick\b/g, "Tap") : text;
+}
+
 // The clicks to send: the objects that have a click or a box (negative clicks alone are
 // an object too: the automatic subject minus them).
 function clickedObjects() {
@@ -49,4 +61,4 @@ function clickedObjects() {
     .map((o) => (o.box ? { positive: o.positive, negative: o.negative, box: o.box } : { positive: o.positive, negative: o.negative }));
 }
 
-export { $, SVG_NS, clickedObjects, setStatus, showError, state };
+export { $, SVG_NS, clickedObjects, fingerWords, setStatus, showError, state, touchScreen };
