@@ -4,7 +4,7 @@
 // jeans beside the frame, scrolled into view, and offers its download.
 import { clickedObjects } from "./editor.js";
 import { answerOf } from "./server.js";
-import { $, setStatus, showError, state } from "./state.js";
+import { $, fingerWords, setStatus, showError, state } from "./state.js";
 
 let making = 0; // the newest making's number: leaving the clip or making it again ends the older one
 let request = null; // the running making's AbortController: aborting closes its connection,
@@ -24,7 +24,7 @@ function showClip(answer) {
   if (!state.clip) return;
   const { frames, seconds } = state.clip;
   const length = `${frames ? `${frames} frames` : "several frames"}${seconds ? `, ${seconds} s` : ""}`;
-  $("clip-about").textContent = `A clip (${length}): this is its first frame. Click the subject on it if needed, then make the clip.`;
+  $("clip-about").textContent = fingerWords(`A clip (${length}): this is its first frame. Click the subject on it if needed, then make the clip.`);
   $("make-clip").disabled = false;
 }
 
