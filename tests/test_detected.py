@@ -196,6 +196,23 @@ def test_top_auto_names_the_class_only_where_it_is_sure():
     assert detected.captions({}) == ("how would this", "wear jeans?")  # classical finding: no class
 
 
+def test_clicks_with_objects_all_add_the_other_detected_animals(stand_in):
+    """A click on the cat and --objects all: the cat from the click (a click on a detected
+    animal starts from its box), then the dog as automatic finding gives it, the
+    detector's; not classical finding's pieces."""
+    pixels, disc = _photo()
+    yy, xx = np.mgrid[:240, :320]
+    second = (xx - 70) ** 2 + (yy - 120) ** 2 < 40**2
+    pixels[second] = (40, 60, 90)
+    stand_in += [_d("dog", 0.7, (140, 70, 260, 190)), _d("cat", 0.6, (25, 75, 115, 165))]
+    found = extract_silhouettes(pixels, objects="all", points=[(70.5, 120.5)])
+    assert [s.method for s in found] == ["clicks", "detector"]
+    assert found[0].details["detection"]["class"] == "cat" and found[1].details["detection"]["class"] == "dog"
+    assert _iou(found[0].mask >= 0.5, second) > 0.9 and _iou(found[1].mask >= 0.5, disc) > 0.95
+    # The cat clicked again is not added twice.
+    assert len(extract_silhouettes(pixels, objects="all", points=[(200.5, 130.5)])) == 2
+
+
 def test_negative_clicks_alone_edit_the_detectors_subject(stand_in):
     """ "The automatic subject minus this" is the subject found without clicks: the
     detector's dog here, where classical finding alone takes the blue square."""

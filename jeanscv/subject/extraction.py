@@ -167,17 +167,26 @@ def extract_silhouettes(
     session = ClickSession(pixels, shared=shared, automatic=automatic, detector=detector)
     chosen = clicked_silhouettes(session, wanted)
     if objects == "all":
+        covered = np.zeros(pixels.shape[:2], bool)
+        for silhouette in chosen:
+            covered |= np.asarray(silhouette.mask) >= 0.5
+        # The other objects as automatic finding gives them: the detector's animals where
+        # it finds some, else classical finding's pieces. One mostly under a clicked
+        # object is that object again.
+        detected = _detected_silhouettes(pixels, "all", subject, detector) if method == "auto" and rect is None else []
+        if detected:
+            for silhouette in detected:
+                mask = np.asarray(silhouette.mask) >= 0.5
+                if np.count_nonzero(mask & ~covered) > 0.5 * np.count_nonzero(mask):
+                    chosen.append(silhouette)
+            return chosen
         try:
             main = extract_silhouette(
                 pixels, method, threshold=threshold, rect=rect, shared=shared, subject=subject, several=True
             )
         except JeansError:
             return chosen
-        covered = np.zeros(pixels.shape[:2], bool)
-        for silhouette in chosen:
-            covered |= silhouette.mask
         for obj in split_objects(main.mask):
-            # An automatic object mostly under a clicked one is that object again.
             if np.count_nonzero(obj.mask & ~covered) > 0.5 * obj.area:
                 chosen.append(_object_silhouette(obj, main))
     return chosen
