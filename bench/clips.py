@@ -4,6 +4,8 @@
     python -m bench.clips --memory        peak memory, 300 frames against 1200 (smaller frames)
     python -m bench.clips --look CLIP     CLIP.strip.png: 8 of its frames, to look at
     python -m bench.clips --docs docs/clips   docs/clips.md's example clips and strip
+    python -m bench.clips --real [--detector auto|none] [--only camel,...] [--strip DIR]
+                                          the real clips of ../shared/clips, against their masks
 
 Each case is a real pet cut out of ``../shared/pet_photos`` by its mask (a procedural
 animal when that folder is absent) pasted on a real photo of ``../shared/real_photos``,
@@ -25,6 +27,18 @@ its own callback records each frame's masks and vertices. Figures:
 
 ``--strip`` writes a contact strip of frames (input, and output with the followed mask's
 outline in green) to look at.
+
+``--real``: each clip of ``../shared/clips`` (real footage, a reference mask on every
+frame: :mod:`testkit.real_clip_set`) through ``apply_jeans_to_clip``, the subject found
+automatically on frame 0 (``--detector``: with the shipped detector or classically).
+Per clip: frames; the followed mask's mean (and worst) IoU against the reference; the
+share of frames whose jeans have >= 85% of their pixels on the animal (as
+``bench.real_photos``' "jeans on the subject"; a frame without jeans counts as off);
+frames without jeans; ``jitter``, the RMS of the jeans vertices' second difference (px:
+0 for a steady motion, a jump counts); seconds (wall) and CPU seconds a frame, the
+machine's load beside them. ``--strip DIR`` writes ``DIR/NAME.strip.png``: 6 evenly
+spaced output frames with the reference's outline in yellow and the followed mask's in
+green; and ``DIR/real_clips.jpg``, those of every clip a row (docs/clips.md's figure).
 """
 
 from __future__ import annotations
@@ -80,7 +94,9 @@ def make_clip(case: str, width: int, height: int, frames: int, path: Path):
     return sprite, ground, motion
 
 
-def run_case(case: str, width: int, height: int, frames: int, strip: Path | None, auto: bool = False) -> dict:
+def run_case(
+    case: str, width: int, height: int, frames: int, strip: Path | None, auto: bool = False, detector: str = "auto"
+) -> dict:
     from jeanscv.options import JeansOptions
     from jeanscv.run.clips import write_jeans_clip
 
@@ -107,7 +123,7 @@ def run_case(case: str, width: int, height: int, frames: int, strip: Path | None
         load = os.getloadavg()[0]
         began, cpu = time.perf_counter(), time.process_time()
         point = sc.inner_point(sc.frame(sprite, ground, motion.transform(0, sprite))[1])
-        options = JeansOptions() if auto else JeansOptions(points=(point,))
+        options = JeansOptions(detector=detector) if auto else JeansOptions(points=(point,), detector=detector)
         report = write_jeans_clip(source, output, options, on_frame=on_frame)
         seconds = time.perf_counter() - began - spent[0]
         cpu = time.process_time() - cpu - spent[0]
@@ -153,23 +169,92 @@ def _motion_errors(vertices: list, motion: sc.Motion, sprite: sc.Sprite) -> tupl
     return float(steps.mean()), float(np.sqrt(np.mean(steps**2))), float(np.mean(drift)), float(np.max(drift))
 
 
-def _outlined(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    out = np.ascontiguousarray(image.copy())
+def _outlined(image: np.ndarray, mask: np.ndarray, colour: tuple[int, int, int] = (0, 255, 0)) -> np.ndarray:
+    out = np.ascontiguousarray(image[..., :3].copy())
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    cv2.drawContours(out, contours, -1, (0, 255, 0), 2)
+    cv2.drawContours(out, contours, -1, colour, 2)
     return out
 
 
-def _write_strip(path: Path, images: list[np.ndarray], height: int = 180) -> None:
+def _write_strip(path: Path, images: list[np.ndarray], height: int = 180, across: int = 4) -> None:
     thumbs = [
         cv2.resize(im, (round(im.shape[1] * height / im.shape[0]), height), interpolation=cv2.INTER_AREA)
         for im in images
     ]
-    rows = [np.hstack(thumbs[i : i + 4]) for i in range(0, len(thumbs), 4)]
+    rows = [np.hstack(thumbs[i : i + across]) for i in range(0, len(thumbs), across)]
     width = max(r.shape[1] for r in rows)
     rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0))) for r in rows]
     cv2.imwrite(str(path), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR))
     print(f"wrote {path}")
+
+
+def run_real(folder: Path, detector: str, strip: Path | None, frames: int | None = None) -> dict:
+    """One real clip (a folder of frames and masks) through ``apply_jeans_to_clip``,
+    scored against its masks (:class:`testkit.real_clip_set.ClipScore`)."""
+    from jeanscv.options import JeansOptions
+    from jeanscv.run.clips import apply_jeans_to_clip
+    from testkit import real_clip_set as rc
+
+    paths = rc.frame_paths(folder)[:frames]
+    picked = {round(k * (len(paths) - 1) / 5) for k in range(6)}
+    score, shown, spent = rc.ClipScore(), [], 0.0
+    load = os.getloadavg()[0]
+    began, cpu = time.perf_counter(), time.process_time()
+    for result in apply_jeans_to_clip(rc.read_frames(paths), JeansOptions(detector=detector), fps=24.0):
+        start = time.perf_counter()
+        truth = rc.reference(paths[result.index])
+        mask = score.add(result, truth)
+        if result.index in picked:
+            shown.append(_outlined(_outlined(result.image, truth, (255, 230, 0)), mask))
+        spent += time.perf_counter() - start
+    seconds = time.perf_counter() - began - spent
+    cpu = time.process_time() - cpu - spent
+    if strip is not None:
+        strip.mkdir(parents=True, exist_ok=True)
+        _write_strip(strip / f"{folder.name}.strip.png", shown, height=150, across=3)
+    count = len(paths)
+    summary = score.summary()
+    return {"case": folder.name, **summary, "s_frame": seconds / count, "cpu_frame": cpu / count, "load": load} | {
+        "shown": shown
+    }
+
+
+def real(detector: str, only: str, strip: Path | None, frames: int | None) -> None:
+    """``--real``: the table of :func:`run_real` over ``../shared/clips``."""
+    from testkit import real_clip_set as rc
+
+    folders = [f for f in rc.clip_folders() if not only or f.name in only.split(",")]
+    if not folders:
+        print(f"no clips in {rc.CLIPS}", file=sys.stderr)
+        return
+    print(f"detector {detector}")
+    print(
+        f"{'clip':8} {'frames':>6} {'IoU mean':>8} {'min':>6} {'>=85%':>6} {'no jeans':>8} {'jitter':>6} "
+        f"{'s/frame':>7} {'cpu/frame':>9} {'load':>5}"
+    )
+    rows = []
+    for folder in folders:
+        r = run_real(folder, detector, strip, frames)
+        print(
+            f"{r['case']:8} {r['frames']:6d} {r['iou_mean']:8.3f} {r['iou_min']:6.3f} {r['on_animal']:6.0%} "
+            f"{r['without']:8d} {r['jitter']:6.2f} {r['s_frame']:7.3f} {r['cpu_frame']:9.3f} {r['load']:5.2f}",
+            flush=True,
+        )
+        height = 110  # docs/clips.md's figure: one row of 6 frames a clip, small enough for the docs
+        rows.append(
+            np.hstack(
+                [
+                    cv2.resize(im, (round(im.shape[1] * height / im.shape[0]), height), cv2.INTER_AREA)
+                    for im in r["shown"]
+                ]
+            )
+        )
+    if strip is not None and rows:
+        width = max(row.shape[1] for row in rows)
+        sheet = np.vstack([np.pad(row, ((0, 0), (0, width - row.shape[1]), (0, 0))) for row in rows])
+        out = strip / "real_clips.jpg"
+        cv2.imwrite(str(out), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 80])
+        print(f"wrote {out} ({out.stat().st_size / 1024:.0f} KiB)")
 
 
 def look(path: Path, count: int = 8) -> Path:
@@ -244,8 +329,19 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--auto", action="store_true", help="find the pet automatically on frame 0 (default: a click on it)"
     )
+    parser.add_argument("--real", action="store_true", help="the real clips of ../shared/clips, against their masks")
+    parser.add_argument(
+        "--detector",
+        choices=("auto", "none"),
+        default="auto",
+        help="the detector (frame 0, and holding the subject) or not",
+    )
     args = parser.parse_args(argv)
     height = round(args.width * 9 / 16)
+    if args.real:
+        only = "" if args.only == ",".join(CASES) else args.only
+        real(args.detector, only, args.strip, args.frames if "--frames" in (argv or sys.argv) else None)
+        return
     if args.look:
         look(args.look)
         return
@@ -263,7 +359,7 @@ def main(argv: list[str] | None = None) -> None:
         f"{'follow':>6} {'jitter':>6} {'drift':>6} {'worst':>6} {'flips':>5} {'lost':>4}"
     )
     for case in args.only.split(","):
-        r = run_case(case, args.width, height, args.frames, args.strip, args.auto)
+        r = run_case(case, args.width, height, args.frames, args.strip, args.auto, args.detector)
         print(
             f"{r['case']:8} {r['frames']:6d} {r['seconds']:6.1f} {r['fps']:6.1f} {r['cpu_ms']:6.0f} {r['load']:5.2f} {r['iou_min']:8.3f} "
             f"{r['iou_mean']:6.3f} {r['follow']:6.2f} {r['jitter']:6.2f} {r['drift']:6.2f} {r['worst']:6.2f} {r['flips']:5d} {r['lost']:4d}",

@@ -267,7 +267,7 @@ def clip_decorate(options):
         return None
     from .extras import add_captions, side_by_side
 
-    # A clip's subject is found classically (no detector's class): "how would this".
+    # Decided before the clip's first frame is found (no detector's class yet): "how would this".
     top, bottom = _captions(options, {})
 
     def decorate(painted, original):

@@ -406,12 +406,15 @@ def test_still_clip_jeans_hold_still():
 def test_the_jeans_stay_on_a_subject_that_moves_across_the_frame():
     """The jeans follow the subject's motion: on every frame within 2 px of the first
     frame's jeans moved as the subject moved (a pure translation of 30 px). Measured
-    frame to frame only, the motion's small errors added up to 5.7 px by the last frame."""
+    frame to frame only, the motion's small errors added up to 5.7 px by the last frame.
+    Classical finding: the detector calls this textured animal a cat (0.46), and the click
+    it then cuts (IoU 0.91 against 0.99) is not what this measures."""
     from jeanscv.run.clips import apply_jeans_to_clip
 
     sprite, ground, motion = _moving(frames=16, travel=(30.0, 0.0), turn=0.0, grow=0.0)
     made = _frames(sprite, ground, motion)
-    results = list(apply_jeans_to_clip((p for p, _, _ in made), points=[sc.inner_point(made[0][1])], fps=10.0))
+    frames = (p for p, _, _ in made)
+    results = list(apply_jeans_to_clip(frames, points=[sc.inner_point(made[0][1])], fps=10.0, detector="none"))
     first = results[0].objects[0].silhouette.framing.to_image(results[0].objects[0].fit.vertices)
     for result, (_, _, matrix) in zip(results, made):
         obj = result.objects[0]

@@ -20,8 +20,11 @@ The first frame's masks come from the still-photo segmentation (automatic or cli
    or went behind something).
 
 Several objects are followed each on its own; a pixel two objects claim goes to the
-first. Masks are ``(H, W)`` bool at the frame's full resolution; motions are 2x3 maps
-between pixel-centre coordinates (x right, y down, centres at +0.5).
+first. A clip run with the detector (:mod:`._reanchor`) restarts an object from a fresh
+cut (:meth:`Follower.reseed`), keeps it within its detected box
+(:meth:`Follower.keep_within`) and lets its band trust the colours more
+(``Followed.prior``). Masks are ``(H, W)`` bool at the frame's full resolution; motions
+are 2x3 maps between pixel-centre coordinates (x right, y down, centres at +0.5).
 """
 
 from __future__ import annotations
@@ -46,7 +49,9 @@ LOST_FRACTION = 0.15
 UNLIKE = 0.5
 #: Share of the colour model renewed from each frame's mask.
 MODEL_RATE = 0.1
-#: How much the moved mask counts against the colour model in the edge band (0..1).
+#: How much the moved mask counts against the colour model in the edge band (0..1): at
+#: 0.5 a pixel outside the moved mask never joins it (the mask only shrinks by colour,
+#: and cannot drift onto a background of its colours; a leg that swings out is lost).
 PRIOR_WEIGHT = 0.5
 #: Margin of the search box around an object, as a fraction of the box's longer side.
 ROI_MARGIN = 0.3
@@ -81,6 +86,9 @@ class Followed:
     background: np.ndarray
     found_area: float
     lost: bool = False
+    # How much the moved mask counts against the colour model in the edge band: a mask
+    # held to a detector's box (:mod:`._reanchor`) trusts the colours more.
+    prior: float = PRIOR_WEIGHT
     # The key frame the motion is measured from (its grey copy and the object's corners
     # on it, OpenCV's coordinates) and its pose; the poses (3x3 maps from the first
     # frame's pixels) of the last frame as measured and as given out.
@@ -158,6 +166,35 @@ class Follower:
             self.objects.append(
                 Followed(soft, _histogram(index, inside), _histogram(index, around), max(area, 1.0), lost=area < 1)
             )
+
+    def reseed(self, index: int, pixels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Follow object ``index`` afresh from ``mask`` (full resolution) on ``pixels``, the
+        frame :meth:`step` last took: its mask, colour model and size when found as
+        :meth:`start` makes them, its key frame forgotten (a detector's fresh cut replaces a
+        mask that drifted, and what the band had learnt on the way). Returns the mask as
+        followed from here (full resolution)."""
+        small = self._small(pixels)
+        soft = cv2.resize(np.asarray(mask, np.float32), self._work, interpolation=cv2.INTER_AREA)
+        inside = soft > 0.5
+        area = float(np.count_nonzero(inside))
+        colours = _colour_index(small)
+        around = self._surroundings(inside, area)
+        prior = self.objects[index].prior
+        obj = Followed(soft, _histogram(colours, inside), _histogram(colours, around), max(area, 1.0), area < 1, prior)
+        self.objects[index] = obj
+        return self._full(obj.soft)
+
+    def keep_within(self, index: int, box: tuple[float, float, float, float]) -> np.ndarray:
+        """Object ``index``'s mask without what lies outside ``box`` (``(x0, y0, x1, y1)``
+        full-resolution pixels): the mask as followed from here (full resolution)."""
+        obj = self.objects[index]
+        sx, sy = self._work[0] / self._size[0], self._work[1] / self._size[1]
+        x0, y0 = max(int(np.floor(box[0] * sx)), 0), max(int(np.floor(box[1] * sy)), 0)
+        x1, y1 = int(np.ceil(box[2] * sx)), int(np.ceil(box[3] * sy))
+        within = np.zeros(obj.soft.shape, bool)
+        within[y0 : max(y1, y0), x0 : max(x1, x0)] = True
+        obj.soft[~within] = 0.0
+        return self._full(obj.soft)
 
     @staticmethod
     def _surroundings(inside: np.ndarray, area: float) -> np.ndarray:
@@ -346,7 +383,7 @@ class Follower:
         fg, bg = obj.foreground[colours], obj.background[colours]
         likely = (fg + 1e-4) / (fg + bg + 2e-4)
         score = inside.astype(np.float32)
-        score[band] = PRIOR_WEIGHT * rigid[band] + (1 - PRIOR_WEIGHT) * likely
+        score[band] = obj.prior * rigid[band] + (1 - obj.prior) * likely
         score = cv2.GaussianBlur(score, (5, 5), 1.0)  # neighbours agree: no speckle on the edge
         refined = score > 0.5
         refined = cv2.morphologyEx(refined.view(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
