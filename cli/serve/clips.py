@@ -123,8 +123,8 @@ def open_clip(path: Path, name: str, caps: ClipCaps, max_pixels: int, subject: s
         raise JeansError(_page_reason(exc)) from None
     # The page shows frame 0 as a photo (a transparent clip's clear pixels on white, as the
     # clips' follower sees them); the clip itself is made from the file.
-    # Found classically, as the clip's own subject is (its follower knows no detector yet).
-    photo = engine.open_photo(on_white(first.pixels), name, max_pixels, subject, detector="none")
+    # Found as the clip's own frame 0 is: the detector first (the page shows what the clip dresses).
+    photo = engine.open_photo(on_white(first.pixels), name, max_pixels, subject)
     photo.clip = ClipSource(path, info.frames, info.seconds, info.fps, clip_format(name))
     return photo
 

@@ -285,7 +285,7 @@ def open_photo(
     decoded pixels (a clip's first frame); ``subject``: what automatic finding looks for
     (``--subject``); ``shared``: the photo's hypotheses when they may be cut already
     (a folder photo's, see :class:`.store.FolderCuts`); ``detector``: ``auto`` (the
-    shipped detector first, as the command line) or ``none`` (classical finding: a clip's).
+    shipped detector first, as the command line and a clip's frame 0) or ``none`` (classical finding).
 
     Raises JeansError with the command line's one-line reason for a bad file.
     """
