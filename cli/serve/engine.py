@@ -167,16 +167,19 @@ _detector_warming: threading.Thread | None = None
 
 
 def _warm_detector() -> None:
-    """Import torch and load the detector's model in the background, once per process
-    (about 0.9 s that the first photo would otherwise wait); a failure is the first
+    """Import torch, load the detector's model and run it once in the background, once per
+    process (about 2 s that the first photo would otherwise wait); a failure is the first
     photo's to report (:func:`jeanscv.subject.detected.find`: classical finding, one line)."""
     global _detector_warming
 
     def load() -> None:
-        from jeanscv.detect import load as load_model
+        from jeanscv.detect import detect
 
         try:
-            load_model()
+            # One run on a small grey picture: torch's first call on a graph costs more
+            # than a second beyond the model's loading, which the first photo or clip
+            # would otherwise wait for.
+            detect(np.full((64, 64, 3), 128, np.uint8))
         except Exception:  # noqa: BLE001 - reported where the photo needs the detector
             pass
 
