@@ -58,7 +58,7 @@ FITS_KEPT = 3
 #: How the page finds a photo's subject: as the command line does, the shipped detector
 #: first (``--detector auto``). A negative click alone edits the subject the page shows
 #: (the photo's click session is given it: :meth:`Photo.session`). A clip's first frame
-#: is found classically, as the clip itself is (:mod:`.clips`).
+#: too, as the clip itself finds it (:mod:`.clips`).
 DETECTOR = "auto"
 
 
