@@ -2,6 +2,8 @@
 
     python -m bench.clips [--frames 300] [--width 1280] [--only moving,still,...] [--strip PNG]
     python -m bench.clips --memory        peak memory, 300 frames against 1200 (smaller frames)
+    python -m bench.clips --large [--frames 60] [--size 3840x2160]
+                                          a 4K clip through the command: peak memory, frames a second
     python -m bench.clips --look CLIP     CLIP.strip.png: 8 of its frames, to look at
     python -m bench.clips --docs docs/clips   docs/clips.md's example clips and strip
     python -m bench.clips --real [--detector auto|none] [--only camel,...] [--strip DIR]
@@ -317,6 +319,30 @@ def memory(frames: int, width: int, height: int) -> int:
     return int(out.stdout.split()[-1]) * 1024
 
 
+def large(frames: int, size: str) -> dict:
+    """The moving case at ``size`` (``WxH``, default 4K), ``frames`` long, through the
+    command (``jeanscv CLIP -o DIR``, the subject found automatically) in a child process:
+    its peak RSS (MiB), its wall seconds and frames a second, startup included."""
+    width, height = (int(v) for v in size.lower().split("x"))
+    with tempfile.TemporaryDirectory() as folder:
+        source = Path(folder, "large.mp4")
+        make_clip("moving", width, height, frames, source)
+        load = os.getloadavg()[0]
+        began = time.perf_counter()
+        command = [sys.executable, "-m", "jeanscv", str(source), "-o", str(Path(folder, "out")), "--json"]
+        subprocess.run(command, cwd=ROOT, capture_output=True, text=True, check=True)
+        seconds = time.perf_counter() - began
+        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # the largest child: the command
+    return {
+        "size": f"{width}x{height}",
+        "frames": frames,
+        "seconds": seconds,
+        "fps": frames / seconds,
+        "peak_mib": peak,
+        "load": load,
+    }
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--frames", type=int, default=300)
@@ -324,6 +350,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--only", default=",".join(CASES))
     parser.add_argument("--strip", type=Path)
     parser.add_argument("--memory", action="store_true")
+    parser.add_argument("--large", action="store_true", help="a large clip through the command: peak memory, fps")
+    parser.add_argument("--size", default="3840x2160", help="--large's frame size, WxH")
     parser.add_argument("--docs", type=Path, metavar="FOLDER", help="only write docs/clips.md's examples there")
     parser.add_argument("--look", type=Path, metavar="CLIP", help="only write CLIP.strip.png: 8 of its frames")
     parser.add_argument(
@@ -347,6 +375,14 @@ def main(argv: list[str] | None = None) -> None:
         return
     if args.docs:
         docs_examples(args.docs)
+        return
+    if args.large:
+        frames = args.frames if "--frames" in (argv or sys.argv) else 60
+        r = large(frames, args.size)
+        print(
+            f"{r['size']}, {r['frames']} frames: peak RSS {r['peak_mib']:.0f} MiB, {r['seconds']:.1f} s, "
+            f"{r['fps']:.2f} fps (load {r['load']:.2f})"
+        )
         return
     if args.memory:
         short, long = memory(300, 640, 360), memory(1200, 640, 360)

@@ -685,3 +685,38 @@ def test_the_anchor_holds_a_rigid_subject_and_lets_go_of_a_new_shape():
     lying[70:100, 30:110] = True  # the same animal lying down: IoU 0.14 with the anchor frame's
     _, weight = track.anchoring(lying, None)
     assert weight == 0.0
+
+
+def test_a_4k_clip_is_followed_on_a_working_copy_and_painted_at_full_size(monkeypatch):
+    """Issue 48, "Large frames": a 3840x2160 clip's later frames are followed, held and
+    fitted on a copy at most WORK_SIDE long; the jeans are painted on the frame at full size
+    and sit on the subject."""
+    from jeanscv.run import clips
+    from jeanscv.subject.follow import Follower
+
+    width, height = 3840, 2160
+    sprite = sc.texture_sprite(900, seed=3)
+    ground = sc.background(width, height, seed=5)
+    motion = sc.Motion((1300.0, 1100.0), (120.0, 20.0), 2.0, 0.03, frames=3)
+    made = _frames(sprite, ground, motion)
+    seen = []
+    step = Follower.step
+    monkeypatch.setattr(Follower, "step", lambda self, pixels: seen.append(pixels.shape) or step(self, pixels))
+    frames = (p for p, _, _ in made)
+    results = list(clips.apply_jeans_to_clip(frames, mask=made[0][1], detector="none", iterations=20, starts=1))
+    assert seen == [(720, 1280, 3)] * 2  # followed on the working copy
+    assert [r.event for r in results] == ["start", "follow", "follow"]
+    sizes = []
+    for result, (pixels, truth, _) in zip(results, made):
+        obj = result.objects[0]
+        assert result.image.shape == pixels.shape
+        assert obj.silhouette.mask.shape == truth.shape  # painted at full size
+        assert sc.iou(np.asarray(obj.silhouette.mask) >= 0.5, truth) >= 0.9, result.index
+        vertices = obj.silhouette.framing.to_image(obj.fit.vertices)
+        assert np.allclose(vertices, obj.fit.vertices_image)
+        painted = np.any(result.image != pixels, axis=-1)
+        sizes.append(int(painted.sum()))
+        assert (painted & ~truth).sum() < 0.05 * sizes[-1], (
+            result.index
+        )  # on the subject (its edge within a pixel or two)
+    assert sizes[0] > 10_000 and max(sizes) < 1.3 * min(sizes), sizes  # the same jeans, at full size

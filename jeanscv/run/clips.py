@@ -15,6 +15,9 @@ With the detector (``detector="auto"``, the default), the followed objects are h
 its boxes every few frames (:mod:`jeanscv.subject._reanchor`), and cut again inside them
 where the mask drifted; the jeans then glide onto a fresh fit of the new mask, as they do
 when they have slid off the followed mask.
+
+A clip larger than :data:`WORK_SIDE` is followed, held and fitted on a working copy of each
+frame, and painted at full size (issue 48, "Large frames").
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from ..io.write import on_white
 from ..options import JeansOptions
 from ..report import FittedObject
 from ..subject.silhouettes import Silhouette
+from ._working import rescaled, working_copy
 
 #: Seconds of clip between two looks for a lost subject (a full automatic segmentation).
 LOOK_AGAIN_SECONDS = 1.0
@@ -63,6 +67,10 @@ GLIDE_FRAMES = 5
 #: Iterations of such a fresh fit: 30, 50 and 100 gave the same figures; 30 takes 0.03 s,
 #: 100 0.3 s.
 FRESH_ITERATIONS = 30
+#: Longest side (pixels) of the working copy a larger clip's later frames are followed,
+#: held to the detector and fitted on (issue 48, "Large frames"); the jeans are painted on
+#: the frame at full size. Clips up to this size are followed on their own frames.
+WORK_SIDE = 1280
 
 
 @dataclass
@@ -224,6 +232,24 @@ class _ClipRun:
         self.looked_at = -np.inf
         self.missed = ""  # why the last automatic look found nothing
         self.fresh = 0  # fresh fits made to anchor the jeans again (for the benches)
+        # The working copy's size against the frame's, (sx, sy): 1 for frames up to
+        # WORK_SIDE; the tracks, the follower and the detector's hold live on that copy.
+        self.scale = (1.0, 1.0)
+
+    # ------------------------------------------------------------ working size
+    def _working(self, pixels: np.ndarray) -> np.ndarray:
+        """``pixels`` at most :data:`WORK_SIDE` long (the frame itself when it fits, or for
+        a drawing); sets :attr:`scale`."""
+        if self.kind != "photo":
+            self.scale = (1.0, 1.0)
+            return pixels
+        pixels, self.scale = working_copy(pixels, WORK_SIDE)
+        return pixels
+
+    def _rescaled(self, fitted: FittedObject, to_work: bool, shape: tuple[int, int]) -> FittedObject:
+        """``fitted`` on the working copy (``to_work``) or back on the frame at full size."""
+        sx, sy = self.scale if to_work else (1.0 / self.scale[0], 1.0 / self.scale[1])
+        return rescaled(fitted, (sx, sy), to_work, shape)
 
     # ------------------------------------------------------------ finding afresh
     def find(self, frame: ClipFrame, options: JeansOptions, event: str) -> ClipFrameResult:
@@ -232,19 +258,24 @@ class _ClipRun:
 
         result = apply_jeans(frame.pixels, options)
         self.kind = result.kind
-        self.tracks = [_Track(obj, obj) for obj in result.objects]
+        # A large frame's objects are followed on its working copy (the picture is the photo's).
+        pixels = self._working(frame.pixels)
+        objects = list(result.objects)
+        if self.scale != (1.0, 1.0):
+            objects = [self._rescaled(obj, True, pixels.shape[:2]) for obj in objects]
+        self.tracks = [_Track(obj, obj) for obj in objects]
         for track in self.tracks:
             if self.kind == "photo":
                 track.share = _share_on(track.first.silhouette, track.anchor)
         # The follower sees a transparent clip's clear pixels as white (their RGB is whatever the palette had).
-        self.follower.start(on_white(frame.pixels), [obj.silhouette.mask for obj in result.objects])
+        self.follower.start(on_white(pixels), [obj.silhouette.mask for obj in objects])
         if self.reanchor is not None and self.kind == "photo":
             given = bool(
                 options.points or options.box is not None or options.clicks is not None or options.mask is not None
             )
-            details = [obj.silhouette.details or {} for obj in result.objects]
-            masks = [obj.silhouette.mask for obj in result.objects]
-            self.reanchor.start(frame.pixels, masks, details, given, self.follower)
+            details = [obj.silhouette.details or {} for obj in objects]
+            masks = [obj.silhouette.mask for obj in objects]
+            self.reanchor.start(pixels, masks, details, given, self.follower)
         return ClipFrameResult(frame.index, frame.time, frame.duration, result.image, list(result.objects), event)
 
     def start(self, frame: ClipFrame, options: JeansOptions, event: str = "start") -> ClipFrameResult:
@@ -296,14 +327,15 @@ class _ClipRun:
         """A frame after the first: its masks followed, its jeans carried and settled."""
         if self.kind == "silhouette":
             return self._follow_drawing(frame)
-        step = self.follower.step(on_white(frame.pixels))
+        pixels = self._working(frame.pixels)  # a large frame: its working copy
+        step = self.follower.step(on_white(pixels))
         if step.cut:  # found afresh; a scene with nothing to find goes by without jeans
             self.looked_at = -np.inf
             return self.start(frame, _automatic(self.options), "cut")
         image = frame.pixels
         masks, recut, held = step.masks, [False] * len(step.masks), [False] * len(step.masks)
         if self.reanchor is not None:
-            masks, recut = self.reanchor.step(on_white(frame.pixels), self.follower, step.masks, step.motions)
+            masks, recut = self.reanchor.step(on_white(pixels), self.follower, step.masks, step.motions)
             held = self.reanchor.checked()
         objects: list[FittedObject | None] = []
         for index, (track, mask, motion) in enumerate(zip(self.tracks, masks, step.motions)):
@@ -326,8 +358,11 @@ class _ClipRun:
             if anchoring == 0.0:  # a new shape: the jeans are anchored afresh on it
                 track.anchor_on(track.fitted)
                 track.share = _share_on(silhouette, track.anchor)
-            objects.append(track.fitted)
-            image = self._paint(image, track.fitted, index)
+            shown = track.fitted
+            if self.scale != (1.0, 1.0):  # painted on the frame at full size
+                shown = self._rescaled(shown, False, frame.pixels.shape[:2])
+            objects.append(shown)
+            image = self._paint(image, shown, index)
         if all(obj is None for obj in objects):
             found = self.look_again(frame)
             if found is not None:
