@@ -47,6 +47,8 @@ class FittedObject:
             entry["point"] = [_round(v) for v in self.silhouette.details["point"]]
         if "clicks" in self.silhouette.details:
             entry["clicks"] = self.silhouette.details["clicks"]
+        if "detection" in self.silhouette.details:  # the detected object it is (found, or clicked on)
+            entry["detection"] = self.silhouette.details["detection"]
         return entry
 
 

@@ -135,3 +135,15 @@ def test_a_later_click_inside_the_box_changes_only_what_lies_near_it():
     rows, columns = np.nonzero(changed)
     assert changed.any()
     assert np.all(np.hypot(columns - far[0] * sx, rows - far[1] * sy) <= reach)
+
+
+def test_the_report_names_the_detected_animal_a_click_dressed():
+    """The shipped detector sees the drawn dog (a dog, 0.61): a click on it is that
+    detection in the object's report entry; a click on the owner names none."""
+    from jeanscv import apply_jeans
+
+    image = np.array(scene().image)
+    dog = apply_jeans(image, points=[inside_point(scene().masks[1])], iterations=30, starts=2).report("two.png")
+    assert dog["objects"][0]["detection"]["class"] == "dog"
+    owner = apply_jeans(image, points=[inside_point(scene().masks[0])], iterations=30, starts=2).report("two.png")
+    assert "detection" not in owner["objects"][0]
