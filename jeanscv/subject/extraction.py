@@ -158,13 +158,16 @@ def extract_silhouettes(
     height, width = pixels.shape[:2]
     Clicks(tuple(wanted)).check((width, height))
     shared = shared or SharedHypotheses()  # the session's hypotheses are auto's too
+    # The detector runs once: its boxes start the session's clicks, and it finds the
+    # automatic subject that negative clicks alone edit and --objects all's other objects.
+    detections = _detections(pixels, detector)
     automatic = None
     if any(obj.edits_automatic for obj in wanted) and method == "auto" and rect is None:
         # Negative clicks alone take something away from the automatic subject as it
         # is found without clicks: the detector's where it finds one (as the page shows it).
-        found = _detected_silhouettes(pixels, "one", subject, detector)
+        found = _detected_silhouettes(pixels, "one", subject, detector, detections)
         automatic = np.asarray(found[0].mask) >= 0.5 if found else None
-    session = ClickSession(pixels, shared=shared, automatic=automatic, detector=detector)
+    session = ClickSession(pixels, shared=shared, automatic=automatic, detector=detector, detections=detections)
     chosen = clicked_silhouettes(session, wanted)
     if objects == "all":
         covered = np.zeros(pixels.shape[:2], bool)
@@ -173,7 +176,11 @@ def extract_silhouettes(
         # The other objects as automatic finding gives them: the detector's animals where
         # it finds some, else classical finding's pieces. One mostly under a clicked
         # object is that object again.
-        detected = _detected_silhouettes(pixels, "all", subject, detector) if method == "auto" and rect is None else []
+        detected = (
+            _detected_silhouettes(pixels, "all", subject, detector, detections)
+            if method == "auto" and rect is None
+            else []
+        )
         if detected:
             for silhouette in detected:
                 mask = np.asarray(silhouette.mask) >= 0.5
@@ -192,21 +199,35 @@ def extract_silhouettes(
     return chosen
 
 
-def _detected_silhouettes(pixels: np.ndarray, objects: str, subject: str, detector: str) -> list[Silhouette]:
-    """The detector's subject (``objects="all"``: every detected object of the kind asked
-    for), each cut inside its box; empty where it finds none, or the photo's alpha
-    channel already is the silhouette."""
+def _detections(pixels: np.ndarray, detector: str, stacklevel: int = 3) -> list:
+    """The photo's detections (:func:`.detected.find`; ``detector`` ``none``: none), with
+    one warning line where the model cannot be used (at ``stacklevel``: the caller of
+    :func:`extract_silhouettes`)."""
     import warnings
 
+    from . import detected
+
+    found, problem = detected.find(pixels, detector)
+    if problem:
+        warnings.warn(f"jeanscv: {problem}", detected.DetectorWarning, stacklevel=stacklevel)
+    return found
+
+
+def _detected_silhouettes(
+    pixels: np.ndarray, objects: str, subject: str, detector: str, found: list | None = None
+) -> list[Silhouette]:
+    """The detector's subject (``objects="all"``: every detected object of the kind asked
+    for), each cut inside its box; empty where it finds none, or the photo's alpha
+    channel already is the silhouette. ``found``: the photo's detections where the caller
+    has them (else the detector runs here)."""
     from . import detected
     from .interactive import WORKING_SIZE
     from .photo import _alpha_meaningful
 
     if pixels.ndim == 3 and pixels.shape[2] == 4 and _alpha_meaningful(pixels[..., 3]):
         return []
-    found, problem = detected.find(pixels, detector)
-    if problem:
-        warnings.warn(f"jeanscv: {problem}", detected.DetectorWarning, stacklevel=3)
+    if found is None:
+        found = _detections(pixels, detector, stacklevel=4)
     ranked = detected.wanted(found, subject, pixels.shape[:2])
     chosen = ranked[:1] if objects == "one" else ranked
     segmentations = detected.detected_segmentations(pixels, chosen, WORKING_SIZE)
