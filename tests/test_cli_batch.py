@@ -22,6 +22,18 @@ from PIL import Image
 FAST = ("--iterations", "3", "--starts", "1")
 
 
+def assert_interrupted(process, lines: list[str], code: int, timeout: float) -> None:
+    """A batch stopped by a signal ends as the command promises: exit ``code``, no
+    traceback, the resume line, a summary that counts the skipped inputs. ``lines``: its
+    standard error read so far, to which the rest is added."""
+    _, rest = process.communicate(timeout=timeout)
+    lines += rest.splitlines()
+    assert process.returncode == code, lines
+    assert "Traceback" not in rest
+    assert "jeanscv: interrupted: finished outputs are kept; run again to resume" in lines
+    assert lines[-1].split(" in ")[0].endswith("skipped")
+
+
 def _env() -> dict:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
@@ -207,12 +219,7 @@ def test_interrupt_keeps_finished_outputs_and_no_partial_files(tmp_path, sig, co
         os.killpg(process.pid, sig)  # Ctrl-C reaches the whole process group
     else:
         process.send_signal(sig)
-    _, rest = process.communicate(timeout=120)
-    lines += rest.splitlines()
-    assert process.returncode == code, lines
-    assert "Traceback" not in rest
-    assert "jeanscv: interrupted: finished outputs are kept; run again to resume" in lines
-    assert lines[-1].split(" in ")[0].endswith("skipped")
+    assert_interrupted(process, lines, code, timeout=120)
     outputs = sorted(folder.glob("*.jeans.png"))
     assert 1 <= len(outputs) < count
     assert [p.name for p in folder.iterdir() if p.name.startswith(".")] == []  # no temporary files

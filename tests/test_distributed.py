@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from conftest import ROOT
 from PIL import Image
+from test_cli_batch import assert_interrupted
 
 from jeanscv import __version__
 from jeanscv.api import apply_jeans
@@ -290,12 +291,7 @@ def test_dask_run_interrupted_keeps_finished_outputs_and_resumes(client, address
         if sum(line.startswith("[") for line in lines) == 2 or not line:
             break
     process.send_signal(sig)
-    _, rest = process.communicate(timeout=60)
-    lines += rest.splitlines()
-    assert process.returncode == code, lines
-    assert "Traceback" not in rest
-    assert "jeanscv: interrupted: finished outputs are kept; run again to resume" in lines
-    assert lines[-1].split(" in ")[0].endswith("skipped")
+    assert_interrupted(process, lines, code, timeout=60)
     _wait_idle(client)  # tasks running when it stopped end on their workers; queued ones were cancelled
     made = sorted(folder.rglob("*.jeans.png"))
     assert 2 <= len(made) < 30
