@@ -64,15 +64,13 @@ def detected_boxes(
 
     found, problem = (list(detections), None) if detections is not None else find(rgb, detector)
     height, width = rgb.shape[:2]
-    boxes = {}
-    for detection in found:
-        if detection.score < CLICK_SCORE or detection.label not in ANIMALS:
-            continue
-        box = box_pixels(detection.box, (width, height))
-        if box not in boxes or boxes[box].score < detection.score:
-            boxes[box] = DetectedBox(box, detection.label, detection.score)
+    boxes = [
+        DetectedBox(box_pixels(d.box, (width, height)), d.label, d.score)
+        for d in found
+        if d.score >= CLICK_SCORE and d.label in ANIMALS
+    ]
     kept: list[DetectedBox] = []
-    for detected in sorted(boxes.values(), key=lambda d: -d.score):
+    for detected in sorted(boxes, key=lambda d: -d.score):
         # One animal's boxes under several classes (a dog 0.61 and a sheep 0.32 on it):
         # the likeliest stands for it.
         if all(box_iou(detected.box, other.box) < SAME_OBJECT for other in kept):
