@@ -397,13 +397,6 @@ def _fit_more_lines(text: str, max_width: float, height: int, start: int, font_p
         size = max(floor, int(size * 0.92))  # the floor itself is tried last
 
 
-def layout_caption(text: str, width: int, height: int, font_path: Path | None = None):
-    """Font, stroke width and lines for a classic meme caption across ``width`` pixels
-    (:func:`fit_caption`'s)."""
-    fit = fit_caption(text, width, height, font_path)
-    return fit.font, fit.stroke, list(fit.lines)
-
-
 def caption_fits(width: int, height: int, top: str | None, bottom: str | None) -> dict[str, CaptionFit]:
     """How ``top`` and ``bottom`` are drawn across a ``width`` x ``height`` picture
     (keys ``"top"``, ``"bottom"``; a blank caption has none): what :func:`add_captions`
