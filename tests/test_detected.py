@@ -50,6 +50,26 @@ def test_one_animal_called_two_names_is_one_object():
     assert detected.wanted([dog, cat], "auto", (300, 451)) == [cat]
 
 
+def test_a_person_called_an_animal_on_the_same_box_is_not_an_animal():
+    shape = (370, 500)
+    # A man asleep: "person 0.47" and "cat 0.38" on one box (IoU 0.97); the real cat's own box.
+    man = _d("person", 0.47, (2, 5, 491, 366))
+    man_as_cat = _d("cat", 0.38, (4, 15, 493, 367))
+    cat = _d("cat", 0.41, (27, 239, 204, 367))
+    assert detected.box_iou(man.box, man_as_cat.box) >= detected.SAME_PERSON
+    assert detected.animals([man, man_as_cat, cat]) == [cat]
+    assert detected.wanted([man, man_as_cat, cat], "auto", shape) == [cat]
+    # Without the person, or where the animal is the likelier name, it stays.
+    assert detected.wanted([man_as_cat, cat], "auto", shape) == [man_as_cat, cat]
+    sure_cat = _d("cat", 0.6, man_as_cat.box)
+    assert detected.animals([man, sure_cat, cat]) == [sure_cat, cat]
+    # A rider on a horse: their boxes overlap, less than one object's would.
+    rider = _d("person", 0.55, (129, 98, 299, 341))
+    horse = _d("horse", 0.46, (115, 159, 304, 347))
+    assert 0.6 < detected.box_iou(rider.box, horse.box) < detected.SAME_PERSON
+    assert detected.animals([rider, horse]) == [horse]
+
+
 def test_doubts_say_why_a_pick_may_be_wrong():
     shape = (100, 100)
     mask = np.zeros(shape, bool)

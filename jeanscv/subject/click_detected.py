@@ -59,15 +59,14 @@ def detected_boxes(
     box first (a click on a cat in a person's lap means the cat), and a warning line
     where the detector cannot be used. ``detector``: ``auto`` (the shipped model) or
     ``none`` (no boxes); ``detections``: the photo's, where the caller has them already."""
-    from ..detect import ANIMALS
-    from .detected import SAME_OBJECT, box_iou, find
+    from .detected import SAME_OBJECT, animals, box_iou, find
 
     found, problem = (list(detections), None) if detections is not None else find(rgb, detector)
     height, width = rgb.shape[:2]
     boxes = [
         DetectedBox(box_pixels(d.box, (width, height)), d.label, d.score)
-        for d in found
-        if d.score >= CLICK_SCORE and d.label in ANIMALS
+        for d in animals(found)
+        if d.score >= CLICK_SCORE
     ]
     kept: list[DetectedBox] = []
     for detected in sorted(boxes, key=lambda d: -d.score):
