@@ -37,7 +37,9 @@ Per clip: frames; the followed mask's mean (and worst) IoU against the reference
 share of frames whose jeans have >= 85% of their pixels on the animal (as
 ``bench.real_photos``' "jeans on the subject"; a frame without jeans counts as off);
 frames without jeans; ``jitter``, the RMS of the jeans vertices' second difference (px:
-0 for a steady motion, a jump counts); seconds (wall) and CPU seconds a frame, the
+0 for a steady motion, a jump counts), ``whole``, the same of the jeans' centroid (their
+shake as a whole), and ``own``, the same of the reference mask's centroid (the animal's
+own motion, which the jeans' shake as a whole should stay under); seconds (wall) and CPU seconds a frame, the
 machine's load beside them. ``--strip DIR`` writes ``DIR/NAME.strip.png``: 6 evenly
 spaced output frames with the reference's outline in yellow and the followed mask's in
 green; and ``DIR/real_clips.jpg``, those of every clip a row (docs/clips.md's figure).
@@ -232,14 +234,15 @@ def real(detector: str, only: str, strip: Path | None, frames: int | None) -> No
     print(f"detector {detector}")
     print(
         f"{'clip':8} {'frames':>6} {'IoU mean':>8} {'min':>6} {'>=85%':>6} {'no jeans':>8} {'jitter':>6} "
-        f"{'s/frame':>7} {'cpu/frame':>9} {'load':>5}"
+        f"{'whole':>5} {'own':>5} {'s/frame':>7} {'cpu/frame':>9} {'load':>5}"
     )
     rows = []
     for folder in folders:
         r = run_real(folder, detector, strip, frames)
         print(
             f"{r['case']:8} {r['frames']:6d} {r['iou_mean']:8.3f} {r['iou_min']:6.3f} {r['on_animal']:6.0%} "
-            f"{r['without']:8d} {r['jitter']:6.2f} {r['s_frame']:7.3f} {r['cpu_frame']:9.3f} {r['load']:5.2f}",
+            f"{r['without']:8d} {r['jitter']:6.2f} {r['centre_jitter']:5.2f} {r['own']:5.2f} {r['s_frame']:7.3f} {r['cpu_frame']:9.3f} "
+            f"{r['load']:5.2f}",
             flush=True,
         )
         height = 110  # docs/clips.md's figure: one row of 6 frames a clip, small enough for the docs

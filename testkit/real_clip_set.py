@@ -62,9 +62,12 @@ class ClipScore:
     on_subject: list[float] = field(default_factory=list)
     vertices: list[np.ndarray | None] = field(default_factory=list)
     in_mask: list[float] = field(default_factory=list)
+    centres: list[np.ndarray | None] = field(default_factory=list)
 
     def add(self, result, truth: np.ndarray) -> np.ndarray:
         """Score one :class:`~jeanscv.run.clips.ClipFrameResult`; returns its followed mask."""
+        ys, xs = np.nonzero(truth)
+        self.centres.append(np.array([[xs.mean(), ys.mean()]]) if xs.size else None)
         obj = result.objects[0] if result.objects else None
         if obj is None:
             self.ious.append(iou(np.zeros_like(truth), truth))
@@ -85,17 +88,24 @@ class ClipScore:
         """The jeans' shake (px): the RMS over frames of their vertices' mean second
         difference (``v[t+1] - 2 v[t] + v[t-1]``), which a steady motion leaves at 0 and a
         jump of the jeans (a re-anchoring) counts in."""
-        shakes = [
-            float(np.linalg.norm(c - 2 * b + a, axis=1).mean())
-            for a, b, c in zip(self.vertices, self.vertices[1:], self.vertices[2:])
-            if a is not None and b is not None and c is not None
-        ]
-        return float(np.sqrt(np.mean(np.square(shakes)))) if shakes else float("nan")
+        return shake(self.vertices)
+
+    def centre_jitter(self) -> float:
+        """The jeans' shake as a whole (px): :func:`shake` of their vertices' mean, to hold
+        against the animal's own (:meth:`own_motion`)."""
+        return shake([None if v is None else v.mean(axis=0, keepdims=True) for v in self.vertices])
+
+    def own_motion(self) -> float:
+        """The animal's own shake (px), to hold the jeans' against: :func:`shake` of the
+        reference mask's centroid (a walking camel's is about 1.4 px, its box corners'
+        2.5)."""
+        return shake(self.centres)
 
     def summary(self) -> dict:
         """``frames``, ``iou_mean``, ``iou_min``, ``on_animal`` (share of frames with the
-        jeans >= :data:`ON_SUBJECT` on the animal), ``without`` (frames without jeans) and
-        ``jitter``."""
+        jeans >= :data:`ON_SUBJECT` on the animal), ``without`` (frames without jeans),
+        ``jitter``, the jeans' shake as a whole (``centre_jitter``) and the animal's
+        ``own``."""
         return {
             "frames": len(self.ious),
             "iou_mean": float(np.mean(self.ious)),
@@ -103,4 +113,18 @@ class ClipScore:
             "on_animal": float(np.mean([s >= ON_SUBJECT for s in self.on_subject])),
             "without": sum(v is None for v in self.vertices),
             "jitter": self.jitter(),
+            "centre_jitter": self.centre_jitter(),
+            "own": self.own_motion(),
         }
+
+
+def shake(points: list[np.ndarray | None]) -> float:
+    """The RMS over frames of the mean second difference (``p[t+1] - 2 p[t] + p[t-1]``,
+    px) of ``points`` (per frame ``(N, 2)`` image pixels, None where missing): 0 for a
+    steady motion, a jump counts."""
+    shakes = [
+        float(np.linalg.norm(c - 2 * b + a, axis=1).mean())
+        for a, b, c in zip(points, points[1:], points[2:])
+        if a is not None and b is not None and c is not None
+    ]
+    return float(np.sqrt(np.mean(np.square(shakes)))) if shakes else float("nan")

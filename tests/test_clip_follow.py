@@ -164,3 +164,16 @@ def test_real_clips_stay_on_the_animal():
         iou_floor, jeans_floor = floors.get(folder.name, (0.6, 0.7))
         assert summary["iou_mean"] >= iou_floor and np.mean(score.on_subject) >= jeans_floor, (folder.name, summary)
     assert time.perf_counter() - began < 60  # about 5 s on two free cores
+
+
+def test_shake_is_zero_for_a_steady_motion_and_counts_a_jump():
+    """The benches' jitter measure (testkit.real_clip_set.shake): the RMS over frames of
+    the mean second difference; steady motion 0, a 3-px jump on one frame of five counts
+    on the three second differences it enters (3, 6, 3 px)."""
+    steady = [np.array([[2.0 * t, 10.0 - t], [5.0 + 2.0 * t, -t]]) for t in range(6)]
+    assert rc.shake(steady) == 0.0
+    jumped = [np.array([[0.0, 0.0]]) for _ in range(5)]
+    jumped[2] = np.array([[3.0, 0.0]])
+    assert rc.shake(jumped) == pytest.approx(np.sqrt((9 + 36 + 9) / 3))
+    assert rc.shake([None, *jumped]) == pytest.approx(np.sqrt((9 + 36 + 9) / 3))  # a missing frame is skipped
+    assert np.isnan(rc.shake([np.zeros((1, 2))] * 2))
