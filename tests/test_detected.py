@@ -84,6 +84,11 @@ def test_doubts_say_why_a_pick_may_be_wrong():
     corner = np.zeros(shape, bool)
     corner[20:40, 20:40] = True
     assert detected.doubts(cat, [], corner, shape) == ["the cut does not fill the cat's box"]
+    # The two starts of the cut inside the box disagree: where the cat ends is unsure.
+    assert detected.doubts(cat, [], mask, shape, agreement=0.7) == [
+        "the cut inside the cat's box is unsure where the cat ends"
+    ]
+    assert detected.doubts(cat, [], mask, shape, agreement=0.9) == []
 
 
 def _photo() -> tuple[np.ndarray, np.ndarray]:

@@ -1,7 +1,9 @@
 """The object inside a box a person dragged round it: GrabCut on a crop, two starts (a
 third where both collapse).
 
-Public API: :func:`box_cut`, :func:`box_interior`, :func:`box_recut` and :func:`box_score` (used by :class:`~jeanscv.subject.interactive.ClickSession`).
+Public API: :func:`box_cut` (:func:`box_cut_agreed`: with how far its two starts agree),
+:func:`box_interior`, :func:`box_recut` and :func:`box_score` (used by
+:class:`~jeanscv.subject.interactive.ClickSession`).
 
 Arrays: images ``(H, W, 3)`` RGB ``uint8``; masks ``(H, W) bool``; boxes ``(x0, y0, x1,
 y1)`` whole pixels of the array, end exclusive.
@@ -72,6 +74,15 @@ _CORE = 0.2
 
 def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZE) -> np.ndarray:
     """The object inside ``box`` of ``rgb``: ``(H, W)`` bool, False outside the box."""
+    return box_cut_agreed(rgb, box, size)[0]
+
+
+def box_cut_agreed(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZE) -> tuple[np.ndarray, float]:
+    """:func:`box_cut`'s mask and how far its two starts agree: the IoU of their cuts (1.0
+    where only one start could be made). GrabCut settles in one of two local optima, and
+    which one a box gets can turn on a pixel of the box (the dog among people, pet58: box
+    start 0.403 against the geodesic start's 0.392, IoU 0.78; the box a pixel smaller,
+    0.394 against 0.415, IoU 0.53): where the two cuts differ, the object is not sure."""
     height, width = rgb.shape[:2]
     x0, y0, x1, y1 = box
     cx0, cy0, cx1, cy1 = _with_margin(box, (height, width))
@@ -103,6 +114,7 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
             jobs["geodesic"] = pool.submit(_cut, small, geodesic)
         cuts = {name: job.result() & inside for name, job in jobs.items()}
     chosen = max(cuts, key=lambda name: (_score(small, cuts[name], inner), name == "box"))
+    agreement = _iou(cuts["box"], cuts["geodesic"]) if len(cuts) == 2 else 1.0
     reach = _reach(cuts[chosen], inner)
     if reach < _MIN_REACH:
         # Both starts collapsed (two black-and-white cats in a box of the same colours as
@@ -118,7 +130,13 @@ def box_cut(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = CUT_SIZ
     # Only the box of the crop: the resized cut may spill over its edge into the margin.
     found = np.zeros((height, width), bool)
     found[y0:y1, x0:x1] = resize_mask(cuts[chosen], (cw, ch))[y0 - cy0 : y1 - cy0, x0 - cx0 : x1 - cx0]
-    return found
+    return found, agreement
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    """IoU of two bool masks (1.0 when both are empty)."""
+    union = np.count_nonzero(a | b)
+    return float(np.count_nonzero(a & b)) / union if union else 1.0
 
 
 def box_recut(
@@ -274,4 +292,4 @@ def _score(small: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) 
     return float((1.0 - np.sqrt(inner * outer).sum()) * reach)
 
 
-__all__ = ["box_cut", "box_interior", "box_recut", "box_score", "CUT_SIZE"]
+__all__ = ["box_cut", "box_cut_agreed", "box_interior", "box_recut", "box_score", "CUT_SIZE"]

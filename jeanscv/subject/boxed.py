@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from .box_cut import MARGIN, box_cut
+from .box_cut import MARGIN, box_cut_agreed
 from .click_masks import box_mask, box_pixels
 from .click_parts import PixelRefiner
 from .masks import downscale, outer_contour, resize_mask, shape_for
@@ -62,13 +62,26 @@ def box_alone(
     ``support_of`` (a detector's box, not a person's: the working copy itself): what the
     object stands or lies on is dropped first (:func:`without_support`). ``(h, w)``
     bool, False outside the box."""
+    return _box_alone_agreed(rgb, box, size, refiner, support_of)[0]
+
+
+def _box_alone_agreed(
+    rgb: np.ndarray,
+    box: tuple[int, int, int, int],
+    size: tuple[int, int],
+    refiner: PixelRefiner,
+    support_of: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
+    """:func:`box_alone` and how far the box cut's two starts agree
+    (:func:`~.box_cut.box_cut_agreed`)."""
     height, width = rgb.shape[:2]
     working_box = box_pixels(box, (width, height), size)
     inside = box_mask(working_box, (size[1], size[0]))
-    mask = resize_mask(box_cut(rgb, box), size) & inside
+    cut, agreement = box_cut_agreed(rgb, box)
+    mask = resize_mask(cut, size) & inside
     if support_of is not None and mask.any():
         mask = without_support(support_of, mask, working_box)
-    return refiner.refine(mask) & inside if mask.any() else mask
+    return (refiner.refine(mask) & inside if mask.any() else mask), agreement
 
 
 def without_support(rgb: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
@@ -160,10 +173,13 @@ def segment_box(
     """The object inside ``box`` of ``rgb`` as a click session with that box alone gives
     it (the same mask), without the session. ``drop_support`` (a detector's box): without
     what the animal stands or lies on (:func:`without_support`), where upright jeans would
-    hang."""
+    hang. Its ``details['starts_agree']``: how far the box cut's two starts agree (the
+    IoU of their cuts, :func:`~.box_cut.box_cut_agreed`)."""
     height, width = rgb.shape[:2]
     size = shape_for((height, width), working_size)
     small = downscale(rgb, size)
     support_of = small if drop_support else None
-    working = box_alone(rgb, box_pixels(box, (width, height)), size, PixelRefiner(small), support_of)
-    return at_full_size(working, (height, width), box=box, method="detector")
+    working, agreement = _box_alone_agreed(rgb, box_pixels(box, (width, height)), size, PixelRefiner(small), support_of)
+    found = at_full_size(working, (height, width), box=box, method="detector")
+    found.details["starts_agree"] = round(agreement, 3)
+    return found

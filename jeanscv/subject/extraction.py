@@ -234,6 +234,7 @@ def _detected_silhouettes(
     pairs = [(d, s) for d, s in zip(chosen, segmentations) if s is not None]
     if not pairs:
         return []
+    agreements = [s.details.get("starts_agree", 1.0) for _, s in pairs]
     if len(pairs) > 1:
         from .clicks import ObjectClicks
 
@@ -244,7 +245,9 @@ def _detected_silhouettes(
         silhouette = _framed(segmentation)
         # A rival about as prominent makes the one dressed unsure; with "all" both are dressed.
         others = [] if objects == "all" else ranked[1:]
-        silhouette.details.update(detected.subject_details(detection, others, found, segmentation.mask, subject))
+        silhouette.details.update(
+            detected.subject_details(detection, others, found, segmentation.mask, subject, agreements[index])
+        )
         if index:
             silhouette.details["uncertain"] = False  # the note speaks of the main subject
             silhouette.details["doubts"] = []
