@@ -55,24 +55,13 @@ def box_alone(
     size: tuple[int, int],
     refiner: PixelRefiner,
     support_of: np.ndarray | None = None,
-) -> np.ndarray:
+) -> tuple[np.ndarray, float]:
     """The object inside ``box`` (whole photo pixels) at working size ``size`` ``(w, h)``:
     :func:`~.box_cut.box_cut` on the photo's own pixels (a crop of it), then onto the
     working copy, where ``refiner`` (of that copy) refines its boundary like a click's.
     ``support_of`` (a detector's box, not a person's: the working copy itself): what the
     object stands or lies on is dropped first (:func:`without_support`). ``(h, w)``
-    bool, False outside the box."""
-    return _box_alone_agreed(rgb, box, size, refiner, support_of)[0]
-
-
-def _box_alone_agreed(
-    rgb: np.ndarray,
-    box: tuple[int, int, int, int],
-    size: tuple[int, int],
-    refiner: PixelRefiner,
-    support_of: np.ndarray | None = None,
-) -> tuple[np.ndarray, float]:
-    """:func:`box_alone` and how far the box cut's two starts agree
+    bool, False outside the box, and how far the box cut's two starts agree
     (:func:`~.box_cut.box_cut_agreed`)."""
     height, width = rgb.shape[:2]
     working_box = box_pixels(box, (width, height), size)
@@ -179,7 +168,7 @@ def segment_box(
     size = shape_for((height, width), working_size)
     small = downscale(rgb, size)
     support_of = small if drop_support else None
-    working, agreement = _box_alone_agreed(rgb, box_pixels(box, (width, height)), size, PixelRefiner(small), support_of)
+    working, agreement = box_alone(rgb, box_pixels(box, (width, height)), size, PixelRefiner(small), support_of)
     found = at_full_size(working, (height, width), box=box, method="detector")
     found.details["starts_agree"] = round(agreement, 3)
     return found

@@ -266,7 +266,7 @@ class ClickSession(FirstClick):
         x0, y0, x1, y1 = working = box_pixels(box, (width, height), self.size)
         inside = box_mask(working, self.rgb.shape[:2])
         if not clicks:
-            return self._remember(key, box_alone(self._rgb, box, self.size, self._pixels))
+            return self._remember(key, box_alone(self._rgb, box, self.size, self._pixels)[0])
         previous = self._boxed(box, clicks[:-1])
         # Every piece of the box's object stays, whatever the clicks add: a deepest point
         # of each is kept beside the positive clicks. They are no clicks: a negative
