@@ -80,6 +80,12 @@ def test_doubts_say_why_a_pick_may_be_wrong():
         "two of similar size: a cat and a dog"
     ]
     assert detected.doubts(cat, [_d("dog", 0.7, (0, 0, 20, 20))], mask, shape) == []  # far less prominent
+    # A box round the cat's (the cat with the armchair it sits in) is no second animal;
+    # one inside it (a kitten in the arms the box holds) is.
+    assert detected.doubts(cat, [_d("dog", 0.7, (10, 10, 90, 90))], mask, shape) == []
+    assert detected.doubts(cat, [_d("dog", 0.7, (30, 30, 80, 80))], mask, shape) == [
+        "two of similar size: a cat and a dog"
+    ]
     assert detected.doubts(_d("cat", 0.4, cat.box), [], mask, shape) == ["the detector is unsure (cat 0.40)"]
     corner = np.zeros(shape, bool)
     corner[20:40, 20:40] = True

@@ -46,6 +46,9 @@ SAME_OBJECT = 0.6
 SAME_PERSON = 0.8
 #: A second object at least this share of the first's prominence makes the pick unsure.
 RIVAL = 0.6
+#: A second box that holds at least this share of the chosen box is the chosen animal
+#: with its surroundings, no rival (the dog in an armchair, 0.88).
+ENCLOSED = 0.8
 #: Scores under this make the pick unsure.
 WEAK_SCORE = 0.45
 #: A cut whose own box overlaps the detection's box less than this disagrees with it.
@@ -109,6 +112,14 @@ def wanted(detections: list[Detection], subject: str, shape: tuple[int, int]) ->
     return kept
 
 
+def _held(inner: tuple[float, ...], outer: tuple[float, ...]) -> float:
+    """The share of box ``inner``'s area that lies in box ``outer``."""
+    width = min(inner[2], outer[2]) - max(inner[0], outer[0])
+    height = min(inner[3], outer[3]) - max(inner[1], outer[1])
+    area = (inner[2] - inner[0]) * (inner[3] - inner[1])
+    return width * height / area if width > 0 and height > 0 and area > 0 else 0.0
+
+
 def detection_json(detection: Detection) -> dict:
     """A detection as the report gives it: class, score, box in image pixels."""
     return {
@@ -124,8 +135,11 @@ def doubts(
     """Why the detector's pick may be the wrong thing (empty: sure). ``agreement``: how
     far the two starts of the cut inside its box agree (:func:`.box_cut.box_cut_agreed`)."""
     found = []
-    if others and prominence(others[0], shape) >= RIVAL * prominence(chosen, shape):
-        found.append(f"two of similar size: a {chosen.label} and a {others[0].label}")
+    # A box round the chosen one (it holds most of it) is that animal with what it sits
+    # in, not a second animal: the dog in an armchair was also "dog 0.39" on the chair.
+    rivals = [other for other in others if _held(chosen.box, other.box) < ENCLOSED]
+    if rivals and prominence(rivals[0], shape) >= RIVAL * prominence(chosen, shape):
+        found.append(f"two of similar size: a {chosen.label} and a {rivals[0].label}")
     if chosen.score < WEAK_SCORE:
         found.append(f"the detector is unsure ({chosen.label} {chosen.score:.2f})")
     cut = mask_box(mask)  # (x, y, w, h)
