@@ -177,3 +177,32 @@ def test_shake_is_zero_for_a_steady_motion_and_counts_a_jump():
     assert rc.shake(jumped) == pytest.approx(np.sqrt((9 + 36 + 9) / 3))
     assert rc.shake([None, *jumped]) == pytest.approx(np.sqrt((9 + 36 + 9) / 3))  # a missing frame is skipped
     assert np.isnan(rc.shake([np.zeros((1, 2))] * 2))
+
+
+def test_the_jeans_move_as_a_whole_by_a_blend_of_this_frame_s_motion_and_the_last():
+    """jeanscv.run.clips.carried_jeans: a steady move is kept as it is; a measured move
+    that jumps 1, 3, 1, 3 px a frame carries the jeans 1, 2, 1.5, 2.25, 1.625 px (half of
+    each jump is taken up); a turn about their centre is the measured one."""
+    from jeanscv.run.clips import carried_jeans
+
+    square = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]])
+
+    def shift(dx: float) -> np.ndarray:
+        return np.array([[1.0, 0.0, dx], [0.0, 1.0, 0.0]])
+
+    move = None
+    for _ in range(3):
+        carried, move = carried_jeans(square, shift(2.0), move, 0.5)
+        assert np.allclose(carried, square + [2.0, 0.0]) and np.allclose(move, [2.0, 0.0])
+    move, moves = None, []
+    for dx in (1.0, 3.0, 1.0, 3.0, 1.0):
+        carried, move = carried_jeans(square, shift(dx), move, 0.5)
+        assert np.allclose(carried, square + move)
+        moves.append(float(move[0]))
+    assert moves == [1.0, 2.0, 1.5, 2.25, 1.625]
+    # A quarter turn about the square's centre (2, 2), after a move of 3 px: it turns in
+    # place and moves half of (0 - 3).
+    turn = np.array([[0.0, -1.0, 4.0], [1.0, 0.0, 0.0]])
+    carried, move = carried_jeans(square, turn, np.array([3.0, 0.0]), 0.5)
+    assert np.allclose(move, [1.5, 0.0])
+    assert np.allclose(carried, np.array([[4.0, 0.0], [4.0, 4.0], [0.0, 4.0], [0.0, 0.0]]) + [1.5, 0.0])
