@@ -376,16 +376,7 @@ class _ClipRun:
                 continue
             silhouette = _framed(mask, "follow")
             before = track.fitted.silhouette.framing.to_image(track.fitted.fit.vertices)
-            import os
-
-            alpha = float(os.environ.get("JX_ALPHA", "1"))
-            if motion is not None and alpha < 1:
-                prev = getattr(track, "_smooth", None)
-                smooth = motion if prev is None else alpha * motion + (1 - alpha) * prev
-                track._smooth = smooth
-                carried = apply_affine(smooth, before)
-            else:
-                carried, track.carry = (before, None) if motion is None else carried_jeans(before, motion, track.carry)
+            carried, track.carry = (before, None) if motion is None else carried_jeans(before, motion, track.carry)
             fresh = None
             if recut[index] or (held[index] and _share_on(silhouette, carried) < track.share - JEANS_LEFT):
                 # Cut afresh, or the jeans have left the followed mask: anchored on a fresh
