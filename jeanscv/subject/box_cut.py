@@ -35,6 +35,7 @@ import numpy as np
 from jeanscv.errors import JeansError
 
 from .click_parts import gradient_cost, seeded_grabcut, small_copy
+from .consensus import iou
 from .grabcut import cut_pool, orchard_bouman_models, run_grabcut
 from .masks import downscale, resize_mask, shape_for
 
@@ -114,7 +115,7 @@ def box_cut_agreed(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = 
             jobs["geodesic"] = pool.submit(_cut, small, geodesic)
         cuts = {name: job.result() & inside for name, job in jobs.items()}
     chosen = max(cuts, key=lambda name: (_score(small, cuts[name], inner), name == "box"))
-    agreement = _iou(cuts["box"], cuts["geodesic"]) if len(cuts) == 2 else 1.0
+    agreement = iou(cuts["box"], cuts["geodesic"]) if len(cuts) == 2 else 1.0
     reach = _reach(cuts[chosen], inner)
     if reach < _MIN_REACH:
         # Both starts collapsed (two black-and-white cats in a box of the same colours as
@@ -131,12 +132,6 @@ def box_cut_agreed(rgb: np.ndarray, box: tuple[int, int, int, int], size: int = 
     found = np.zeros((height, width), bool)
     found[y0:y1, x0:x1] = resize_mask(cuts[chosen], (cw, ch))[y0 - cy0 : y1 - cy0, x0 - cx0 : x1 - cx0]
     return found, agreement
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> float:
-    """IoU of two bool masks (1.0 when both are empty)."""
-    union = np.count_nonzero(a | b)
-    return float(np.count_nonzero(a & b)) / union if union else 1.0
 
 
 def box_recut(

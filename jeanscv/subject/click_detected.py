@@ -59,7 +59,7 @@ def detected_boxes(
     box first (a click on a cat in a person's lap means the cat), and a warning line
     where the detector cannot be used. ``detector``: ``auto`` (the shipped model) or
     ``none`` (no boxes); ``detections``: the photo's, where the caller has them already."""
-    from .detected import SAME_OBJECT, animals, box_iou, find
+    from .detected import animals, find, one_per_object
 
     found, problem = (list(detections), None) if detections is not None else find(rgb, detector)
     height, width = rgb.shape[:2]
@@ -68,12 +68,8 @@ def detected_boxes(
         for d in animals(found)
         if d.score >= CLICK_SCORE
     ]
-    kept: list[DetectedBox] = []
-    for detected in sorted(boxes, key=lambda d: -d.score):
-        # One animal's boxes under several classes (a dog 0.61 and a sheep 0.32 on it):
-        # the likeliest stands for it.
-        if all(box_iou(detected.box, other.box) < SAME_OBJECT for other in kept):
-            kept.append(detected)
+    # One animal's boxes under several classes: the likeliest stands for it.
+    kept = one_per_object(sorted(boxes, key=lambda d: -d.score))
     kept.sort(key=lambda d: (d.box[2] - d.box[0]) * (d.box[3] - d.box[1]))
     return tuple(kept), problem
 

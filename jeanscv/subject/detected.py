@@ -23,7 +23,8 @@ is a coin toss between GrabCut's two local optima).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from typing import TypeVar
 
 import numpy as np
 
@@ -31,6 +32,8 @@ from ..detect import ANIMALS, Detection, DetectorUnavailable, detect
 from ..errors import JeansError
 from ..geometry import mask_box
 from ..options import ANIMAL_CLASSES
+
+Boxed = TypeVar("Boxed")  # a detection, or anything else with a ``box``
 
 
 class DetectorWarning(UserWarning):
@@ -62,15 +65,22 @@ DISAGREES = 0.55
 STARTS_AGREE = 0.8
 
 
-def box_iou(a: tuple[float, ...], b: tuple[float, ...]) -> float:
-    """IoU of two ``(x0, y0, x1, y1)`` boxes."""
+def _overlap(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+    """The area two ``(x0, y0, x1, y1)`` boxes share."""
     width = min(a[2], b[2]) - max(a[0], b[0])
     height = min(a[3], b[3]) - max(a[1], b[1])
-    if width <= 0 or height <= 0:
-        return 0.0
-    inter = width * height
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return inter / union if union > 0 else 0.0
+    return width * height if width > 0 and height > 0 else 0.0
+
+
+def _area(box: tuple[float, ...]) -> float:
+    return (box[2] - box[0]) * (box[3] - box[1])
+
+
+def box_iou(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+    """IoU of two ``(x0, y0, x1, y1)`` boxes."""
+    inter = _overlap(a, b)
+    union = _area(a) + _area(b) - inter
+    return inter / union if inter > 0 and union > 0 else 0.0
 
 
 def prominence(detection: Detection, shape: tuple[int, int]) -> float:
@@ -104,20 +114,24 @@ def wanted(detections: list[Detection], subject: str, shape: tuple[int, int]) ->
         pool = [d for d in detections if d.label == "person"]
     else:
         return []
-    ranked = sorted(pool, key=lambda d: (d.label == subject, prominence(d, shape)), reverse=True)
-    kept: list[Detection] = []
-    for detection in ranked:  # one object's boxes under several classes: the first stands for it
-        if all(box_iou(detection.box, other.box) < SAME_OBJECT for other in kept):
-            kept.append(detection)
+    return one_per_object(sorted(pool, key=lambda d: (d.label == subject, prominence(d, shape)), reverse=True))
+
+
+def one_per_object(ranked: Iterable[Boxed]) -> list[Boxed]:
+    """``ranked`` (anything with a ``box``, best first) with one entry per object: a box
+    overlapping one kept by :data:`SAME_OBJECT` or more is that object under another class
+    name (a dog 0.61 and a sheep 0.32 on one animal), and the first stands for it."""
+    kept: list[Boxed] = []
+    for candidate in ranked:
+        if all(box_iou(candidate.box, other.box) < SAME_OBJECT for other in kept):
+            kept.append(candidate)
     return kept
 
 
 def _held(inner: tuple[float, ...], outer: tuple[float, ...]) -> float:
     """The share of box ``inner``'s area that lies in box ``outer``."""
-    width = min(inner[2], outer[2]) - max(inner[0], outer[0])
-    height = min(inner[3], outer[3]) - max(inner[1], outer[1])
-    area = (inner[2] - inner[0]) * (inner[3] - inner[1])
-    return width * height / area if width > 0 and height > 0 and area > 0 else 0.0
+    area = _area(inner)
+    return _overlap(inner, outer) / area if area > 0 else 0.0
 
 
 def detection_json(detection: Detection) -> dict:
