@@ -47,33 +47,29 @@ function placeholder() {
   return box;
 }
 
-function setBadge(tile, clicks) {
+// A mark after the tile's name (a span of class ``kind``), shown or removed.
+function setMark(tile, kind, shown, text, title) {
   const name = tile.querySelector(".name");
-  let badge = name.querySelector(".badge");
-  if (clicks && !badge) {
-    badge = document.createElement("span");
-    badge.className = "badge";
-    badge.textContent = " \u2713 clicks";
-    name.appendChild(badge);
-  } else if (!clicks && badge) {
-    badge.remove();
+  let mark = name.querySelector(`.${kind}`);
+  if (shown && !mark) {
+    mark = document.createElement("span");
+    mark.className = kind;
+    mark.textContent = text;
+    if (title) mark.title = title;
+    name.appendChild(mark);
+  } else if (!shown && mark) {
+    mark.remove();
   }
+}
+
+function setBadge(tile, clicks) {
+  setMark(tile, "badge", Boolean(clicks), " \u2713 clicks");
 }
 
 // The "? unsure" mark: automatic finding was unsure of its subject, and it has no clicks.
 function setUnsure(tile, item) {
-  const name = tile.querySelector(".name");
-  let mark = name.querySelector(".unsure");
   const unsure = Boolean(item.uncertain) && !item.clicks;
-  if (unsure && !mark) {
-    mark = document.createElement("span");
-    mark.className = "unsure";
-    mark.textContent = " ? unsure";
-    mark.title = "automatic finding was unsure: it may have dressed the wrong thing";
-    name.appendChild(mark);
-  } else if (!unsure && mark) {
-    mark.remove();
-  }
+  setMark(tile, "unsure", unsure, " ? unsure", "automatic finding was unsure: it may have dressed the wrong thing");
 }
 
 // What the server now says of an item (``uncertain``, ``clicks``): its tile, the counts
