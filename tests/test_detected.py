@@ -26,9 +26,24 @@ def test_box_iou_exact():
     assert detected.box_iou((0, 0, 10, 10), (10, 0, 20, 10)) == 0.0
 
 
-def test_prominence_is_score_times_root_of_the_box_share():
-    assert detected.prominence(_d("cat", 0.8, (0, 0, 50, 50)), (100, 100)) == pytest.approx(0.8 * 0.5)
-    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8)
+def test_prominence_is_score_times_root_of_the_box_share_less_where_the_edge_cuts_it():
+    edge = detected.EDGE_FACTOR
+    assert detected.prominence(_d("cat", 0.8, (25, 25, 75, 75)), (100, 100)) == pytest.approx(0.8 * 0.5)
+    # Touching the left and top sides (within 1% of the long side: 2 pixels of 200).
+    assert detected.prominence(_d("cat", 0.8, (2, 2, 52, 52)), (100, 200)) == pytest.approx(
+        0.8 * 0.5**0.5 * 0.5 * edge**2
+    )
+    assert detected.prominence(_d("cat", 0.8, (3, 3, 53, 53)), (100, 200)) == pytest.approx(0.8 * 0.5**0.5 * 0.5)
+    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8 * edge**4)
+
+
+def test_an_animal_in_the_frame_wins_over_a_larger_one_the_frame_cuts():
+    # The puppy on a light floor (a shared photo, 473x500): a foot and a toy giraffe at the
+    # photo's corner were called a dog as sure as the puppy, on a larger box.
+    puppy = _d("dog", 0.47, (110.8, 163.0, 266.2, 407.8))
+    corner = _d("dog", 0.466, (1.7, 315.5, 331.5, 499.6))
+    assert detected.prominence(corner, (500, 473)) / detected.EDGE_FACTOR**2 > detected.prominence(puppy, (500, 473))
+    assert detected.wanted([corner, puppy], "auto", (500, 473)) == [puppy, corner]
 
 
 def test_the_most_prominent_animal_wins_over_a_surer_small_one_and_people():
@@ -76,6 +91,11 @@ def test_doubts_say_why_a_pick_may_be_wrong():
     mask[20:80, 20:80] = True
     cat = _d("cat", 0.8, (20, 20, 80, 80))
     assert detected.doubts(cat, [], mask, shape) == []
+    assert detected.doubts(cat, [_d("dog", 0.7, (2, 2, 57, 57))], mask, shape) == [
+        "two of similar size: a cat and a dog"
+    ]
+    # The same box cut by the photo's corner is less likely the subject, but as big and
+    # as sure: still a rival.
     assert detected.doubts(cat, [_d("dog", 0.7, (0, 0, 55, 55))], mask, shape) == [
         "two of similar size: a cat and a dog"
     ]
