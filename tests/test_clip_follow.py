@@ -143,6 +143,28 @@ def test_the_detector_looks_every_few_frames_and_never_without_it():
     assert unused.calls == 0
 
 
+def test_an_object_is_held_between_detections_until_they_miss_it():
+    """The jeans are checked against the followed mask on every frame the object is held
+    (jeanscv.run.clips.JEANS_LEFT), not only on the frames with a detection: held from
+    the detection that matched it until a detection misses it; its box is dropped after
+    MISSES misses in a row."""
+    from jeanscv.subject._reanchor import MISSES, Reanchor
+
+    truth = _animal(60)
+    frame = _painted([truth], [60])[0]
+    found = [Detection("cat", 15, 0.7, _box(truth))]
+    reanchor = Reanchor(lambda _pixels: list(found), every=1)
+    reanchor.start(frame, [truth], [{"detection": {"class": "cat", "box": list(_box(truth))}}], given=False)
+    assert reanchor.holding() == [True]
+    reanchor.since = 1  # a frame without a detection: still held
+    assert reanchor.holding() == [True]
+    found.clear()  # the animal is no longer detected
+    for missed in range(1, MISSES + 1):
+        reanchor._redetect(frame, None, [truth], [False])
+        assert reanchor.holding() == [False], missed
+        assert (reanchor.held[0].box is None) == (missed == MISSES)
+
+
 CLIPS = rc.clip_folders()
 
 

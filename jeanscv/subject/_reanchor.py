@@ -228,9 +228,10 @@ class Reanchor:
         for obj, held in zip(follower.objects, self.held):
             obj.prior = HELD_PRIOR if held.box is not None else PRIOR_WEIGHT
 
-    def checked(self) -> list[bool]:
-        """Per object, whether this frame's detections matched it (its box was renewed)."""
-        return [self.since == 0 and held.box is not None and held.misses == 0 for held in self.held]
+    def holding(self) -> list[bool]:
+        """Per object, whether it is held: the last detection matched it, and its box has
+        been carried by its motion since."""
+        return [held.box is not None and held.misses == 0 for held in self.held]
 
     def step(
         self, pixels: np.ndarray, follower, masks: list[np.ndarray | None], motions: list[np.ndarray | None]
