@@ -34,7 +34,9 @@ def test_prominence_is_score_times_root_of_the_box_share_less_where_the_edge_cut
         0.8 * 0.5**0.5 * 0.5 * edge**2
     )
     assert detected.prominence(_d("cat", 0.8, (3, 3, 53, 53)), (100, 200)) == pytest.approx(0.8 * 0.5**0.5 * 0.5)
-    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8 * edge**4)
+    # Two opposite sides span the photo: a close-up, not a thing cut off beside the subject.
+    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8)
+    assert detected.prominence(_d("cat", 0.8, (0, 36, 100, 100)), (100, 100)) == pytest.approx(0.8 * 0.8 * edge)
 
 
 def test_an_animal_in_the_frame_wins_over_a_larger_one_the_frame_cuts():
@@ -44,6 +46,10 @@ def test_an_animal_in_the_frame_wins_over_a_larger_one_the_frame_cuts():
     corner = _d("dog", 0.466, (1.7, 315.5, 331.5, 499.6))
     assert detected.prominence(corner, (500, 473)) / detected.EDGE_FACTOR**2 > detected.prominence(puppy, (500, 473))
     assert detected.wanted([corner, puppy], "auto", (500, 473)) == [puppy, corner]
+    # A dog filling the photo stays ahead of a sure cat beside it.
+    close_up = _d("dog", 0.6, (0, 0, 473, 500))
+    cat = _d("cat", 0.9, (20, 20, 170, 170))
+    assert detected.wanted([cat, close_up], "auto", (500, 473)) == [close_up, cat]
 
 
 def test_the_most_prominent_animal_wins_over_a_surer_small_one_and_people():
