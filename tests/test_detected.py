@@ -34,9 +34,9 @@ def test_prominence_is_score_times_root_of_the_box_share_less_where_the_edge_cut
         0.8 * 0.5**0.5 * 0.5 * edge**2
     )
     assert detected.prominence(_d("cat", 0.8, (3, 3, 53, 53)), (100, 200)) == pytest.approx(0.8 * 0.5**0.5 * 0.5)
-    # Two opposite sides span the photo: a close-up, not a thing cut off beside the subject.
-    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8)
-    assert detected.prominence(_d("cat", 0.8, (0, 36, 100, 100)), (100, 100)) == pytest.approx(0.8 * 0.8 * edge)
+    # A third or a fourth side touched makes a close-up, not a thing cut off further.
+    assert detected.prominence(_d("cat", 0.8, (0, 36, 100, 100)), (100, 100)) == pytest.approx(0.8 * 0.8 * edge**2)
+    assert detected.prominence(_d("cat", 0.8, (0, 0, 500, 500)), (100, 100)) == pytest.approx(0.8 * edge**2)
 
 
 def test_an_animal_in_the_frame_wins_over_a_larger_one_the_frame_cuts():
