@@ -52,7 +52,7 @@ def measure(path: Path, points: int, rng: np.random.Generator) -> tuple[list[flo
         wx, wy = int(rng.integers(w)), int(rng.integers(h))
         shown = found.mask(found.at(wx, wy))
         taken = session.working_mask([((wx + 0.5) * width / w, (wy + 0.5) * height / h)])
-        if np.count_nonzero(taken) < session._smallest:  # segment() says "nothing found there"
+        if np.count_nonzero(taken) < session._smallest:  # segment() says "nothing clear there"
             taken = np.zeros_like(taken)
         scores.append(iou(shown, taken))
     return scores, seconds, wire

@@ -123,7 +123,7 @@ def main() -> None:
                 status, _, body = server.render(answer["photo"], [{"positive": positive, "negative": negative}])
                 result = json.loads(body)
                 assert status == 200, result
-                if "nothing" in result:  # nothing found there: the page takes the click back
+                if "nothing" in result:  # nothing clear there: the page takes the click back
                     (positive if sign else negative).pop()
                 else:
                     server.request("GET", result["preview"])

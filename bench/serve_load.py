@@ -200,7 +200,7 @@ class Load:
             points = [[round(chooser.uniform(0.3, 0.7) * width, 1), round(chooser.uniform(0.3, 0.7) * height, 1)]]
             status, headers, body = server.render(answer["photo"], [{"positive": points, "negative": []}])
             result = json.loads(body) if status == 200 else {}
-            if status == 200 and "nothing" not in result:  # "nothing found there" has no result
+            if status == 200 and "nothing" not in result:  # "nothing clear there" has no result
                 with self.lock:
                     self.photos.append(result | {"photo": answer["photo"]})
         else:

@@ -84,7 +84,7 @@ def test_every_positive_click_is_in_and_no_negative_one():
         try:
             mask = session().segment(positive, negative).mask
         except JeansError as exc:  # all three on plain background: no object there
-            assert "nothing found there" in str(exc)
+            assert "nothing clear there" in str(exc)
             continue
         checked += 1
         assert all(mask[int(y), int(x)] for x, y in positive)
@@ -561,10 +561,10 @@ def test_a_click_on_plain_background_says_nothing_was_found():
     """It was a one-pixel object, and jeans fitted to it."""
     rng = np.random.default_rng(0)
     noise = np.clip(rng.normal(120, 6, (240, 320, 3)), 0, 255).astype(np.uint8)
-    with pytest.raises(JeansError, match="nothing found there: click inside the subject"):
+    with pytest.raises(JeansError, match="nothing clear there: click inside the subject"):
         ClickSession(noise).segment([(160.5, 120.5)])
     image, _, _, disc = figure()
-    with pytest.raises(JeansError, match="nothing found there"):
+    with pytest.raises(JeansError, match="nothing clear there"):
         extract_silhouettes(image, points=[(300.5, 220.5)])  # the grey corner
     assert share(session().segment([DISC_CLICK]).mask, disc) > 0.98  # a click on something still takes it
 
@@ -719,5 +719,5 @@ def test_the_first_click_map_shows_what_a_first_click_takes():
         shown = found.mask(found.at(x, y))
         assert iou(shown, session().working_mask([click])) > 0.9
         assert share(shown, part) > 0.97 and np.count_nonzero(shown & ~part) < 0.05 * part.sum()
-    assert found.at(300, 220) == -1  # the grey corner: "nothing found there"
+    assert found.at(300, 220) == -1  # the grey corner: "nothing clear there"
     assert found.mask(-1).sum() == 0

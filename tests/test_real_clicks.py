@@ -92,7 +92,7 @@ def clicked(real_photo_hypotheses) -> dict[str, tuple[float, float, float]]:
             try:
                 predicted = session.segment(positive, negative).mask
             except JeansError as exc:  # nothing found: the clicked pixels alone, as it answered before
-                assert "nothing found there" in str(exc)
+                assert "nothing clear there" in str(exc)
                 predicted = np.zeros(reference.shape, bool)
                 for x, y in positive:
                     predicted[int(y), int(x)] = True

@@ -182,7 +182,7 @@ def test_nothing_found_is_an_answer_not_a_refusal(client):
     first = upload(client, "two.png", png_bytes(scene().image)).json()
     url = f"/api/photos/{first['photo']}/render"
     for objects, words in (
-        ([{"positive": [[20.5, 20.5]]}], "two.png: nothing found there: click inside the subject"),
+        ([{"positive": [[20.5, 20.5]]}], "two.png: nothing clear there: click inside the subject"),
         ([{"box": [5, 5, 40, 40]}], "two.png: nothing found in that box: click inside the subject"),
     ):
         answer = client.post(url, json={"objects": objects})

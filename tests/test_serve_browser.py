@@ -339,7 +339,7 @@ def test_a_click_on_plain_background_says_so_and_keeps_the_picture(server, page)
     status = page.inner_text("#status")
     _click_photo(page, 20.5, 20.5)
     page.wait_for_function("() => !document.getElementById('error').hidden", timeout=60_000)
-    assert "nothing found there: click inside the subject" in page.inner_text("#error")
+    assert "nothing clear there: click inside the subject" in page.inner_text("#error")
     page.wait_for_timeout(200)
     assert page.locator("#overlay circle.click").count() == 0  # the click was taken back
     assert page.get_attribute("#result", "src") == before

@@ -109,7 +109,7 @@ def test_a_click_where_nothing_is_found_logs_nothing_in_the_console(server, page
     before = page.get_attribute("#result", "src")
     _click_photo(page, 20.5, 20.5)
     page.wait_for_function("() => !document.getElementById('error').hidden", timeout=60_000)
-    assert "nothing found there: click inside the subject" in page.inner_text("#error")
+    assert "nothing clear there: click inside the subject" in page.inner_text("#error")
     page.wait_for_timeout(300)
     assert answers == [200]
     assert page.locator("#overlay circle.click").count() == 0 and page.is_disabled("#undo")  # taken back

@@ -171,7 +171,7 @@ def test_the_phone_page_speaks_of_fingers(server, phone, page):
     assert "wrong thing? tap the one that should wear them" in phone.inner_text("#status").lower()
     phone.touchscreen.tap(*_point_at(phone, 20.5, 20.5))  # plain background
     phone.wait_for_function("() => !document.getElementById('error').hidden", timeout=60_000)
-    assert "nothing found there: tap inside the subject" in phone.inner_text("#error")
+    assert "nothing clear there: tap inside the subject" in phone.inner_text("#error")
 
     page.goto(server + "/")  # a desktop's page: the keys and the mouse's words
     page.wait_for_selector("#garment option", state="attached")

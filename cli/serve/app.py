@@ -326,7 +326,7 @@ class _Api(clips.ClipEndpoints, folder.FolderEndpoints):
         return photo_id, photo, clicks, render_options
 
     def render_clicked(self, photo_id: str, photo: engine.Photo, clicks, render_options) -> dict:
-        """:meth:`render` of a request's clicks, where "nothing found there" (a click or a
+        """:meth:`render` of a request's clicks, where "nothing clear there" (a click or a
         box on plain background) is an answer, ``{"nothing": reason}``, not a refusal: the
         page shows it and takes the click back, and the browser logs no failed request."""
         try:

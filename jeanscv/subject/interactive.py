@@ -191,8 +191,9 @@ class ClickSession(FirstClick):
             # which the person is told instead of getting jeans on a speck.
             if clicks.edits_automatic:
                 raise NothingFound("nothing is left of the automatic subject after those clicks")
-            where = "in that box" if clicks.box is not None else "there"
-            raise NothingFound(f"nothing found {where}: click inside the subject")
+            if clicks.box is not None:
+                raise NothingFound("nothing found in that box: click inside the subject")
+            raise NothingFound("nothing clear there: click inside the subject")
         found = at_full_size(working, self.shape, positive, negative, clicks.box)
         if detected is not None:
             found.details["detection"] = detected.to_json()

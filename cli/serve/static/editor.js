@@ -166,7 +166,7 @@ function describe(answer) {
   setStatus(`${state.name}: ${fingerWords(text)}`); // "tap" on a touch screen
 }
 
-// A reason from the server in the page's words ("nothing found there: tap inside the
+// A reason from the server in the page's words ("nothing clear there: tap inside the
 // subject" on a touch screen); the photo's name at its start is left as it is.
 function reasonWords(reason) {
   const name = `${state.name}: `;
