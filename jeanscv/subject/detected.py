@@ -171,10 +171,9 @@ def doubts(
     # Two animals of similar size and sureness, wherever the frame cuts them: the frame
     # only says which of the two is likelier the subject.
     rivals = [other for other in others if _held(chosen.box, other.box) < ENCLOSED]
-    if rivals and max(prominence(r, shape, framed=False) for r in rivals) >= RIVAL * prominence(
-        chosen, shape, framed=False
-    ):
-        found.append(f"two of similar size: a {chosen.label} and a {rivals[0].label}")
+    rival = max(rivals, key=lambda other: prominence(other, shape, framed=False), default=None)
+    if rival is not None and prominence(rival, shape, framed=False) >= RIVAL * prominence(chosen, shape, framed=False):
+        found.append(f"two of similar size: a {chosen.label} and a {rival.label}")
     if chosen.score < WEAK_SCORE:
         found.append(f"the detector is unsure ({chosen.label} {chosen.score:.2f})")
     cut = mask_box(mask)  # (x, y, w, h)
